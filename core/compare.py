@@ -1,0 +1,89 @@
+"""One comparison rule: engine signals against the reference, as data.
+
+`compare` returns one discrepancy record per signal (a pandas DataFrame):
+where the largest error happened, how large it is in absolute and relative
+terms, the bound it is judged by, their ratio and the verdict. pytest
+messages, reports and baselines are all built from these records.
+
+The rule (reference in the expected position):
+- angle and position classes: max |engine − reference| ≤ tol (rad, m);
+- every other class: max |engine − reference| ≤ tol · peak, where peak is
+  max |reference| of that signal over the run. Signals cross zero, so the
+  bound is an absolute one scaled by the signal's own size. A reference
+  signal that is identically zero (e.g. α2 at constant crank speed) is
+  scaled by the largest peak of its class instead, since a relative error
+  of a zero signal means nothing.
+Values an engine marks as missing (with a reason) are left out of the
+error and counted; a signal with no value at all is "missing"; NaN or inf
+without a reason fails.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .scenario import Tolerance
+from .signals import SIGNAL_CLASS, Signals
+
+COLUMNS = ["scenario", "engine", "setting", "signal", "class", "max_error", "t_max", "rms_error",
+           "peak", "relative_error", "tolerance", "bound", "ratio", "verdict", "missing", "reason"]
+
+
+def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario: str = "",
+            engine: str | None = None, setting: str = "default") -> pd.DataFrame:
+    """Discrepancy records of `result` against `reference` (same samples)."""
+    engine = engine or result.source
+    t = reference.t
+    if len(result.t) != len(t) or not np.allclose(result.t, t, rtol=0, atol=1e-12 * max(1.0, abs(t[-1]))):
+        raise ValueError(f"{engine}: sample instants differ from the reference's")
+    names = [c for c in reference.frame.columns if c != "t"]
+    class_peak: dict[str, float] = {}
+    for name in names:
+        cls = SIGNAL_CLASS[name]
+        class_peak[cls] = max(class_peak.get(cls, 0.0), float(np.abs(reference[name]).max()))
+    rows = []
+    for name in names:
+        cls = SIGNAL_CLASS[name]
+        ref = reference[name]
+        peak = float(np.abs(ref).max()) or class_peak[cls]
+        tol = tolerance[cls]
+        bound = tol * peak if tolerance.is_relative(cls) else tol
+        values = result[name] if name in result.frame else np.full(len(t), np.nan)
+        reason = result.missing.get(name, "" if name in result.frame else f"{engine} does not report {name}")
+        bad = ~np.isfinite(values)
+        row = dict(scenario=scenario, engine=engine, setting=setting, signal=name, **{"class": cls},
+                   peak=peak, tolerance=tol, bound=bound, missing=int(bad.sum()), reason=reason)
+        if bad.all():
+            row.update(max_error=np.nan, t_max=np.nan, rms_error=np.nan, relative_error=np.nan,
+                       ratio=np.nan, verdict="fail" if not reason else "missing",
+                       reason=reason or "no finite value")
+        elif bad.any() and not reason:
+            row.update(max_error=np.inf, t_max=float(t[bad][0]), rms_error=np.inf, relative_error=np.inf,
+                       ratio=np.inf, verdict="fail", reason="non-finite values without a stated reason")
+        else:
+            error = np.abs(values[~bad] - ref[~bad])
+            worst = int(np.argmax(error))
+            max_error = float(error[worst])
+            row.update(max_error=max_error, t_max=float(t[~bad][worst]),
+                       rms_error=float(np.sqrt(np.mean(error**2))),
+                       relative_error=max_error / peak if peak else np.nan,
+                       ratio=max_error / bound if bound else (0.0 if max_error == 0 else np.inf))
+            row["verdict"] = "pass" if row["ratio"] <= 1.0 else "fail"
+        rows.append(row)
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def passed(records: pd.DataFrame) -> bool:
+    """True when no record failed (missing values with a reason do not fail)."""
+    return not (records["verdict"] == "fail").any()
+
+
+def format_records(records: pd.DataFrame, only_failures: bool = False) -> str:
+    """A fixed-width table of the records, worst ratio first (for terminals
+    and pytest messages)."""
+    shown = records[records["verdict"] == "fail"] if only_failures else records
+    shown = shown.sort_values("ratio", ascending=False, na_position="first")
+    columns = ["scenario", "engine", "setting", "signal", "max_error", "t_max", "relative_error",
+               "bound", "ratio", "verdict", "reason"]
+    return shown[columns].to_string(index=False, float_format=lambda v: f"{v:.3g}")

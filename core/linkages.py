@@ -1,0 +1,22 @@
+"""The mechanism kinds mechval knows: each has a closed-form reference
+module with the same small interface (geometry dataclass, LINKS, PINS,
+check_closure, kinematics, body_motion, build_mechanism)."""
+
+from __future__ import annotations
+
+from types import ModuleType
+
+from . import fourbar, slider_crank
+from .mechanism import Mechanism
+from .scenario import Scenario
+
+LINKAGES: dict[str, ModuleType] = {"fourbar": fourbar, "slider_crank": slider_crank}
+
+
+def linkage(kind: str) -> ModuleType:
+    return LINKAGES[kind]
+
+
+def build_mechanism(scenario: Scenario) -> Mechanism:
+    """The generic `Mechanism` of a validated scenario."""
+    return LINKAGES[scenario.mechanism].build_mechanism(scenario)

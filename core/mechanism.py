@@ -1,0 +1,149 @@
+"""The generic planar mechanism that adapters build engine models from.
+
+A `Mechanism` is all an engine adapter may look at: rigid bodies, joints,
+the drive, gravity, and the reference motion of every body (used only to
+start a simulation from a consistent state). It never says "four-bar": a new
+linkage needs a `Mechanism` builder and a reference, not new engine models.
+
+Frames and conventions (DESIGN.md):
+- World: planar x–y, joint axes along +z, angles counter-clockwise from +x.
+- Each body has a frame; its pose is (x, y, theta) of the frame origin in
+  world. Centre of mass `com` and joint points are given in that body frame.
+  The ground is the body named `GROUND`, whose frame is the world frame.
+- A joint's reaction is the force exerted BY `body_i` ON `body_j`, in world
+  axes, at the joint point (a prismatic joint adds a couple `M` on body_j).
+  Builders order (body_i, body_j) so that this is the canonical `Fij`.
+- The drive acts at a revolute joint; its torque `T` acts on that joint's
+  body_j (the crank) and −T on body_i.
+
+Raw columns (`motion_columns`, `reaction_columns`) name what adapters and
+the reference report: "crank.theta", "A.Fx", "drive.T", ...
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Literal, Mapping
+
+import numpy as np
+import pandas as pd
+
+from .drive import DriveLaw
+
+GROUND = "ground"
+MOTION_QUANTITIES = ("x", "y", "theta", "vx", "vy", "omega", "ax", "ay", "alpha")
+DRIVE_TORQUE = "drive.T"
+
+Vec2 = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body: mass (kg), centre of mass in its frame (m), izz about
+    the centre of mass (kg·m²)."""
+
+    name: str
+    mass: float
+    com: Vec2
+    izz: float
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A revolute or prismatic joint between body_i and body_j.
+
+    `point_i`/`point_j` are the joint point in each body's frame (world for
+    the ground). A prismatic joint lets body_j translate along `axis` (a unit
+    vector in body_i's frame, through point_i) with no relative rotation.
+    `damping` is viscous: N·m·s/rad on the relative rotation (revolute) or
+    N·s/m on the relative translation (prismatic); 0 means no damper.
+    """
+
+    name: str
+    kind: Literal["revolute", "prismatic"]
+    body_i: str
+    body_j: str
+    point_i: Vec2
+    point_j: Vec2
+    axis: Vec2 = (1.0, 0.0)
+    damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class Drive:
+    """The prescribed rotation of `joint` (body_j relative to body_i)."""
+
+    joint: str
+    law: DriveLaw
+
+
+@dataclass(frozen=True)
+class Mechanism:
+    """Generic planar mechanism; see the module docstring for frames."""
+
+    name: str
+    kind: str
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    drive: Drive
+    gravity: Vec2
+    #: Reference motion of every body frame at the given instants, as raw
+    #: motion columns ("crank.theta", ...). Adapters use it to start from a
+    #: consistent state; it may refuse instants where the loop cannot close.
+    motion: Callable[[np.ndarray], pd.DataFrame] = field(repr=False, compare=False)
+    #: Canonical signal name -> raw column ("F32x" -> "A.Fx").
+    signal_map: Mapping[str, str] = field(repr=False, compare=False)
+
+    def body(self, name: str) -> Body:
+        return next(b for b in self.bodies if b.name == name)
+
+    def joint(self, name: str) -> Joint:
+        return next(j for j in self.joints if j.name == name)
+
+    @property
+    def has_gravity(self) -> bool:
+        return any(g != 0.0 for g in self.gravity)
+
+    @property
+    def damped_joints(self) -> tuple[Joint, ...]:
+        return tuple(j for j in self.joints if j.damping != 0.0)
+
+    def motion_columns(self) -> list[str]:
+        return [f"{b.name}.{q}" for b in self.bodies for q in MOTION_QUANTITIES]
+
+    def reaction_columns(self) -> list[str]:
+        columns = []
+        for j in self.joints:
+            columns += [f"{j.name}.Fx", f"{j.name}.Fy"]
+            if j.kind == "prismatic":
+                columns.append(f"{j.name}.M")
+        return columns + [DRIVE_TORQUE]
+
+
+def rotate(theta: np.ndarray, v: Vec2) -> tuple[np.ndarray, np.ndarray]:
+    """World components of the body-frame vector v for body angle theta."""
+    c, s = np.cos(theta), np.sin(theta)
+    return c * v[0] - s * v[1], s * v[0] + c * v[1]
+
+
+def point_motion(motion: pd.DataFrame, body: str, p: Vec2) -> dict[str, np.ndarray]:
+    """Position, velocity and acceleration (world) of the body-fixed point p.
+
+    Rigid-body relations r_P = r_O + R·p, v_P = v_O + ω × (R·p),
+    a_P = a_O + α × (R·p) − ω²·(R·p).
+    """
+    if body == GROUND:
+        zero = np.zeros(len(motion))
+        return dict(x=zero + p[0], y=zero + p[1], vx=zero, vy=zero, ax=zero, ay=zero)
+    th = motion[f"{body}.theta"].to_numpy()
+    w = motion[f"{body}.omega"].to_numpy()
+    al = motion[f"{body}.alpha"].to_numpy()
+    rx, ry = rotate(th, p)
+    return dict(
+        x=motion[f"{body}.x"].to_numpy() + rx,
+        y=motion[f"{body}.y"].to_numpy() + ry,
+        vx=motion[f"{body}.vx"].to_numpy() - w * ry,
+        vy=motion[f"{body}.vy"].to_numpy() + w * rx,
+        ax=motion[f"{body}.ax"].to_numpy() - al * ry - w * w * rx,
+        ay=motion[f"{body}.ay"].to_numpy() + al * rx - w * w * ry,
+    )

@@ -1,0 +1,108 @@
+"""The validated scenario model (SI units) and the error bad input raises.
+
+A `Scenario` is what a scenario file says, after `mechval.scenarios.load`
+has checked every key; the `Mechanism` built from it is what adapters see.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .drive import DriveLaw
+
+
+class ScenarioError(ValueError):
+    """Bad scenario input: names the file, the key and the reason."""
+
+    def __init__(self, source: str | Path | None, key: str, reason: str):
+        self.source, self.key, self.reason = str(source or "<scenario>"), key, reason
+        super().__init__(f"{self.source}: {key}: {reason}")
+
+
+#: Tolerance classes and their defaults (DESIGN.md; velocity and acceleration
+#: are mechval extensions). Angles and positions are absolute (rad, m); the
+#: other classes are max |error| / max |reference| over the run.
+DEFAULT_TOLERANCE = {
+    "angle": 1e-3,
+    "position": 1e-4,
+    "velocity": 1e-2,
+    "acceleration": 1e-2,
+    "force": 1e-2,
+    "torque": 1e-2,
+}
+ABSOLUTE_CLASSES = frozenset({"angle", "position"})
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """Pass/fail bound per signal class (see DEFAULT_TOLERANCE)."""
+
+    bounds: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_TOLERANCE))
+
+    def __getitem__(self, signal_class: str) -> float:
+        return self.bounds[signal_class]
+
+    def is_relative(self, signal_class: str) -> bool:
+        return signal_class not in ABSOLUTE_CLASSES
+
+    def updated(self, overrides: Mapping[str, float]) -> "Tolerance":
+        return Tolerance({**self.bounds, **overrides})
+
+
+@dataclass(frozen=True)
+class LinkMass:
+    """Mass (kg), centre of mass as distance from the link's first joint
+    along the link (m), izz about the centre of mass (kg·m²)."""
+
+    mass: float
+    com: float
+    izz: float
+
+
+@dataclass(frozen=True)
+class TimeGrid:
+    end: float
+    samples: int
+
+    @property
+    def t(self) -> np.ndarray:
+        return np.linspace(0.0, self.end, self.samples)
+
+
+@dataclass(frozen=True)
+class EngineTable:
+    """An [engines.NAME] table: settings for the adapter, tolerance overrides
+    and, per overridden class, the reason the file gives for it."""
+
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    tolerance: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    mechanism: str
+    description: str
+    geometry: Mapping[str, Any]
+    mass: Mapping[str, LinkMass]
+    drive: DriveLaw
+    gravity: tuple[float, float] | None
+    damping: Mapping[str, float]
+    time: TimeGrid
+    tolerance: Tolerance
+    engines: Mapping[str, EngineTable] = field(default_factory=dict)
+    tags: tuple[str, ...] = ()
+    source: Path | None = None
+
+    def tolerance_for(self, engine: str | None) -> Tolerance:
+        """The scenario's tolerance with the engine's overrides applied."""
+        table = self.engines.get(engine) if engine else None
+        return self.tolerance.updated(table.tolerance) if table else self.tolerance
+
+    def settings_for(self, engine: str) -> Mapping[str, Any]:
+        table = self.engines.get(engine)
+        return dict(table.settings) if table else {}

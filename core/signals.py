@@ -1,0 +1,115 @@
+"""The canonical signals table shared by the reference and every engine.
+
+`Signals` is time × named columns (DESIGN.md names, SI units, Fij = force by
+body i on body j in world axes, T12 = drive torque on the crank), plus where
+it came from (source, version, every setting) and, for every column that has
+missing values, the reason they are missing. Missing values are NaN in the
+frame and empty cells in CSV; nothing is ever invented to fill them.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+
+from .mechanism import Mechanism
+
+COMMON_SIGNALS = (
+    "t", "theta2", "omega2", "alpha2", "theta3", "omega3", "alpha3",
+    "F12x", "F12y", "F32x", "F32y", "F43x", "F43y", "T12",
+)
+MECHANISM_SIGNALS = {
+    "fourbar": ("theta4", "omega4", "alpha4", "F14x", "F14y"),
+    "slider_crank": ("x4", "v4", "a4", "F14y"),
+}
+
+#: Tolerance class of each signal (keys of a scenario's [tolerance] table).
+SIGNAL_CLASS = {
+    **{f"theta{k}": "angle" for k in (2, 3, 4)},
+    **{f"omega{k}": "velocity" for k in (2, 3, 4)},
+    **{f"alpha{k}": "acceleration" for k in (2, 3, 4)},
+    "x4": "position", "v4": "velocity", "a4": "acceleration",
+    **{f"F{ij}{c}": "force" for ij in ("12", "32", "43", "14") for c in "xy"},
+    "T12": "torque",
+}
+
+
+def signal_names(kind: str) -> tuple[str, ...]:
+    """Canonical column order for a mechanism kind (DESIGN.md)."""
+    return COMMON_SIGNALS + MECHANISM_SIGNALS[kind]
+
+
+@dataclass(frozen=True)
+class Signals:
+    """Canonical signals at the scenario's samples and their provenance."""
+
+    frame: pd.DataFrame
+    source: str
+    version: str = ""
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    missing: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.frame["t"].to_numpy()
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.frame[name].to_numpy()
+
+    def to_csv(self, path: str | os.PathLike) -> None:
+        """Write full float64 precision (%.17g); missing values are empty.
+
+        Written to a temporary file in the same folder and renamed, so an
+        interrupted write never leaves a half-written file.
+        """
+        write_atomically(path, lambda f: self.frame.to_csv(f, index=False, float_format="%.17g", na_rep=""))
+
+
+def canonical_signals(
+    mechanism: Mechanism,
+    raw: pd.DataFrame,
+    source: str,
+    version: str = "",
+    settings: Mapping[str, Any] | None = None,
+    missing: Mapping[str, str] | None = None,
+) -> Signals:
+    """Map raw columns ("crank.theta", "A.Fx", ...) to canonical signals.
+
+    `missing` gives, per raw column, why some of its values are NaN; it is
+    carried over to the canonical names. A NaN without a stated reason is
+    kept and reported as such, so a blow-up is never mistaken for a gap.
+    """
+    missing = dict(missing or {})
+    columns = {"t": raw["t"].to_numpy()}
+    reasons = {}
+    for name in signal_names(mechanism.kind)[1:]:
+        raw_name = mechanism.signal_map[name]
+        values = raw[raw_name].to_numpy(dtype=float) if raw_name in raw else np.full(len(raw), np.nan)
+        columns[name] = values
+        if raw_name in missing:
+            reasons[name] = missing[raw_name]
+        elif raw_name not in raw:
+            reasons[name] = f"{source} does not report {raw_name}"
+        elif not np.all(np.isfinite(values)):
+            reasons[name] = f"{source} returned non-finite values"
+    return Signals(pd.DataFrame(columns), source, version, dict(settings or {}), reasons)
+
+
+def write_atomically(path: str | os.PathLike, write) -> None:
+    """Call write(file) on a temporary sibling of path, then rename it."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -1,0 +1,116 @@
+"""What every engine adapter shares: settings, step rule, provenance.
+
+An adapter turns a `Mechanism` into an engine model, drives the crank with
+φ(t), and returns raw motion and reaction columns (see `mechval.mechanism`)
+at the requested instants, already in the Fij convention. Mapping to the
+canonical signals and comparing happen elsewhere.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+import pandas as pd
+
+from mechval.linkages import build_mechanism
+from mechval.mechanism import Mechanism
+from mechval.scenario import Scenario, ScenarioError
+from mechval.signals import Signals, canonical_signals
+
+
+@dataclass(frozen=True)
+class RawRun:
+    """An engine's output: raw columns at the requested instants, the reason
+    for every column with missing values, and engine facts worth keeping
+    (e.g. the measured loop-closure gap)."""
+
+    frame: pd.DataFrame
+    missing: Mapping[str, str] = field(default_factory=dict)
+    info: Mapping[str, Any] = field(default_factory=dict)
+
+
+class EngineAdapter(ABC):
+    name: ClassVar[str]
+    #: The import name of the engine library, and its distribution on PyPI.
+    library: ClassVar[str]
+    distribution: ClassVar[str]
+
+    @classmethod
+    def unavailable_reason(cls) -> str:
+        try:
+            importlib.import_module(cls.library)
+        except Exception as exc:  # any import failure makes the engine unavailable
+            return f"{cls.library} cannot be imported ({type(exc).__name__}: {exc})"
+        return ""
+
+    @classmethod
+    def version(cls) -> str:
+        return importlib.metadata.version(cls.distribution)
+
+    @abstractmethod
+    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+        """Settings derived from the scenario so default tolerances are met."""
+
+    @abstractmethod
+    def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        """Simulate and return raw columns at `times` (see module docstring)."""
+
+    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
+                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Derived defaults, then the scenario's [engines.NAME] table, then
+        explicit overrides; unknown keys are refused with the file and key."""
+        settings = self.default_settings(mechanism, scenario.time.t)
+        for origin, table in (("file", scenario.settings_for(self.name)), ("override", overrides or {})):
+            for key, value in table.items():
+                if key not in settings:
+                    source = scenario.source if origin == "file" else "settings override"
+                    raise ScenarioError(source, f"engines.{self.name}.{key}",
+                                        f"unknown setting (known: {', '.join(sorted(settings))})")
+                if type(value) is not type(settings[key]) and not (
+                        isinstance(value, (int, float)) and isinstance(settings[key], float)
+                        and not isinstance(value, bool)):
+                    source = scenario.source if origin == "file" else "settings override"
+                    raise ScenarioError(source, f"engines.{self.name}.{key}",
+                                        f"expected {type(settings[key]).__name__}, got {value!r}")
+                settings[key] = float(value) if isinstance(settings[key], float) else value
+        return settings
+
+    def simulate(self, scenario: Scenario, overrides: Mapping[str, Any] | None = None) -> Signals:
+        """Canonical signals of this engine on the scenario (DESIGN.md contract)."""
+        mechanism = build_mechanism(scenario)
+        settings = self.settings_for(scenario, mechanism, overrides)
+        raw = self.run(mechanism, scenario.time.t, settings)
+        return canonical_signals(mechanism, raw.frame, self.name, self.version(),
+                                 {**settings, **raw.info}, raw.missing)
+
+
+def step_rate(mechanism: Mechanism, times: np.ndarray, dense: int = 20001) -> float:
+    """Ω: the largest over the run and the links of |ω|, √|α| and ∛|jerk|
+    (rad/s), from the reference kinematics on a dense grid.
+
+    Speed alone misjudges sharp motion at moderate speed (near the Grashof
+    change point), hence the α and jerk terms (ENGINE_NOTES, "step rule").
+    """
+    t = np.linspace(float(times[0]), float(times[-1]), dense)
+    motion = mechanism.motion(t)
+    rate = 0.0
+    for body in mechanism.bodies:
+        w = motion[f"{body.name}.omega"].to_numpy()
+        al = motion[f"{body.name}.alpha"].to_numpy()
+        jerk = np.gradient(al, t)
+        rate = max(rate, np.abs(w).max(), np.sqrt(np.abs(al).max()), np.cbrt(np.abs(jerk).max()))
+    return float(rate)
+
+
+def default_step(mechanism: Mechanism, times: np.ndarray, rad_per_step: float = 0.01,
+                 max_step: float = 1e-3) -> float:
+    """dt = rad_per_step / Ω, at most max_step, rounded down so that every
+    sample interval holds a whole number of steps."""
+    interval = float(times[1] - times[0])
+    dt = min(rad_per_step / max(step_rate(mechanism, times), 1e-12), max_step, interval)
+    return interval / int(np.ceil(interval / dt - 1e-9))

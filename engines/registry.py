@@ -1,0 +1,58 @@
+"""The engine registry: names → adapter classes, imported only when used.
+
+Registering by module path keeps `mechval list`, scenario loading and test
+collection free of engine imports (xarray's backend registry does the same).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .base import EngineAdapter
+
+#: Engine name → "module:Class". "reference" is the analytic solution.
+ADAPTERS = {
+    "mujoco": "mechval.engines.mujoco:MujocoAdapter",
+    "pybullet": "mechval.engines.pybullet:PybulletAdapter",
+    "exudyn": "mechval.engines.exudyn:ExudynAdapter",
+}
+ENGINE_NAMES = tuple(ADAPTERS)
+
+
+class UnknownEngine(ValueError):
+    def __init__(self, name: str):
+        super().__init__(f"unknown engine {name!r} (available: reference, {', '.join(ENGINE_NAMES)})")
+
+
+class EngineUnavailable(RuntimeError):
+    """The engine's library is not installed or fails to import."""
+
+
+def adapter(name: str) -> "EngineAdapter":
+    """An instance of the named adapter; raises UnknownEngine/EngineUnavailable."""
+    if name not in ADAPTERS:
+        raise UnknownEngine(name)
+    module_name, class_name = ADAPTERS[name].split(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        raise EngineUnavailable(f"{name}: adapter module {module_name} not found ({exc})") from None
+    cls = getattr(module, class_name)
+    reason = cls.unavailable_reason()
+    if reason:
+        raise EngineUnavailable(f"{name}: {reason}")
+    return cls()
+
+
+def availability() -> dict[str, str]:
+    """Engine name → "" if usable, else the reason it is not."""
+    result = {}
+    for name in ENGINE_NAMES:
+        try:
+            adapter(name)
+            result[name] = ""
+        except EngineUnavailable as exc:
+            result[name] = str(exc)
+    return result

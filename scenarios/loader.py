@@ -1,0 +1,225 @@
+"""Load and validate scenario files (DESIGN.md schema) into `Scenario`s.
+
+Every refusal is a `ScenarioError` naming the file, the dotted key and the
+reason; nothing is half-loaded. Defaults for omitted optional tables: no
+effects, the default tolerances, the engines' own derived settings.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import fields
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from mechval.drive import DriveLaw
+from mechval.engines.registry import ENGINE_NAMES
+from mechval.linkages import LINKAGES
+from mechval.scenario import (DEFAULT_TOLERANCE, EngineTable, LinkMass, Scenario,
+                              ScenarioError, TimeGrid, Tolerance)
+
+HERE = Path(__file__).resolve().parent
+TOP_KEYS = {"name", "mechanism", "description", "tags", "geometry", "mass", "drive",
+            "effects", "time", "tolerance", "engines"}
+REQUIRED_TABLES = ("geometry", "mass", "drive", "time")
+BRANCHES = {"fourbar": ("open", "crossed"), "slider_crank": ("right", "left")}
+#: The ground may be given a mass (as in the published four-bar study); it
+#: does not move, so the value is checked and otherwise has no effect.
+IGNORED_MASS_KEYS = {"ground"}
+
+
+def builtin_names() -> list[str]:
+    return sorted(p.stem for p in HERE.glob("*.toml"))
+
+
+def builtin_path(name: str) -> Path:
+    return HERE / f"{name}.toml"
+
+
+def load(name_or_path: str | Path) -> Scenario:
+    """Load a built-in scenario by name, or a scenario file by path."""
+    text = str(name_or_path)
+    path = Path(text)
+    if not path.suffix and not path.exists() and builtin_path(text).exists():
+        path = builtin_path(text)
+    if not path.is_file():
+        known = ", ".join(builtin_names())
+        raise ScenarioError(text, "file", f"no such scenario file or built-in scenario (built-in: {known})")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ScenarioError(path, "file", f"not valid TOML: {exc}") from None
+    return parse(data, path)
+
+
+class _Reader:
+    """Typed access to one table, with errors that name the dotted key."""
+
+    def __init__(self, source, prefix: str, table: Mapping[str, Any]):
+        self.source, self.prefix, self.table = source, prefix, table
+
+    def key(self, name: str) -> str:
+        return f"{self.prefix}.{name}" if self.prefix else name
+
+    def fail(self, name: str, reason: str):
+        raise ScenarioError(self.source, self.key(name), reason)
+
+    def only(self, allowed) -> None:
+        for name in self.table:
+            if name not in allowed:
+                self.fail(name, f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+    def number(self, name: str, default=None, positive=False, nonnegative=False) -> float:
+        if name not in self.table:
+            if default is None:
+                self.fail(name, "missing value")
+            return default
+        value = self.table[name]
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(name, f"expected a number, got {type(value).__name__} {value!r}")
+        if not math.isfinite(value):
+            self.fail(name, f"must be finite, got {value}")
+        if positive and value <= 0:
+            self.fail(name, f"must be positive, got {value}")
+        if nonnegative and value < 0:
+            self.fail(name, f"must not be negative, got {value}")
+        return float(value)
+
+    def string(self, name: str, default=None, choices=None) -> str:
+        if name not in self.table:
+            if default is None:
+                self.fail(name, "missing value")
+            return default
+        value = self.table[name]
+        if not isinstance(value, str):
+            self.fail(name, f"expected a string, got {type(value).__name__} {value!r}")
+        if choices and value not in choices:
+            self.fail(name, f"must be one of {', '.join(map(repr, choices))}, got {value!r}")
+        return value
+
+    def sub(self, name: str, required=False) -> "_Reader":
+        if name not in self.table:
+            if required:
+                self.fail(name, "missing table")
+            return _Reader(self.source, self.key(name), {})
+        value = self.table[name]
+        if not isinstance(value, dict):
+            self.fail(name, f"expected a table, got {type(value).__name__} {value!r}")
+        return _Reader(self.source, self.key(name), value)
+
+
+def parse(data: Mapping[str, Any], source: str | Path | None = None) -> Scenario:
+    """Validate a parsed TOML document into a `Scenario` (SI units)."""
+    top = _Reader(source, "", data)
+    top.only(TOP_KEYS)
+    name = top.string("name")
+    kind = top.string("mechanism", choices=tuple(LINKAGES))
+    description = top.string("description", default="")
+    tags = data.get("tags", [])
+    if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
+        top.fail("tags", f"expected a list of strings, got {tags!r}")
+    for table in REQUIRED_TABLES:
+        top.sub(table, required=True)
+    module = LINKAGES[kind]
+    geometry = _geometry(top.sub("geometry"), kind, module)
+    mass = _masses(top.sub("mass"), module, geometry)
+    drive_table = top.sub("drive")
+    drive_table.only({"phi0", "omega0", "alpha"})
+    drive = DriveLaw(drive_table.number("phi0", default=0.0), drive_table.number("omega0"),
+                     drive_table.number("alpha", default=0.0))
+    gravity, damping = _effects(top.sub("effects"), module)
+    time_table = top.sub("time")
+    time_table.only({"end", "samples"})
+    samples = time_table.table.get("samples")
+    if isinstance(samples, bool) or not isinstance(samples, int):
+        time_table.fail("samples", f"expected a whole number, got {samples!r}" if samples is not None else "missing value")
+    if samples < 2:
+        time_table.fail("samples", f"must be at least 2, got {samples}")
+    time = TimeGrid(time_table.number("end", positive=True), samples)
+    tolerance = Tolerance().updated(_tolerance(top.sub("tolerance")))
+    engines = _engines(top.sub("engines"))
+    module.check_closure(module.Geometry(**geometry), drive, _dense_times(time), source)
+    return Scenario(name=name, mechanism=kind, description=description, geometry=geometry, mass=mass,
+                    drive=drive, gravity=gravity, damping=damping, time=time, tolerance=tolerance,
+                    engines=engines, tags=tuple(tags), source=Path(source) if source else None)
+
+
+def _dense_times(time: TimeGrid):
+    """The samples plus a dense grid, to locate where a loop fails to close."""
+    return np.union1d(time.t, np.linspace(0.0, time.end, max(20 * time.samples, 20001)))
+
+
+def _geometry(table: _Reader, kind: str, module) -> dict[str, Any]:
+    table.only({f.name for f in fields(module.Geometry)})
+    values: dict[str, Any] = {}
+    for f in fields(module.Geometry):
+        if f.name == "branch":
+            values["branch"] = table.string("branch", default=f.default, choices=BRANCHES[kind])
+        elif f.name == "offset":
+            values["offset"] = table.number("offset", default=f.default)
+        else:
+            values[f.name] = table.number(f.name, positive=True)
+    return values
+
+
+def _masses(table: _Reader, module, geometry: Mapping[str, Any]) -> dict[str, LinkMass]:
+    table.only(set(module.LINKS) | IGNORED_MASS_KEYS)
+    if "ground" in table.table:
+        table.number("ground", positive=True)
+    masses = {}
+    for link in module.LINKS:
+        value = table.table.get(link)
+        if value is None:
+            table.fail(link, "missing value (a mass in kg, or a table {mass=, com=, izz=})")
+        length = geometry.get(link)
+        if isinstance(value, dict):
+            sub = table.sub(link)
+            if length is None:      # the slider: a point mass at its pin
+                sub.only({"mass", "izz"})
+                mass = sub.number("mass", positive=True)
+                masses[link] = LinkMass(mass, 0.0, sub.number("izz", default=0.0, nonnegative=True))
+            else:
+                sub.only({"mass", "com", "izz"})
+                mass = sub.number("mass", positive=True)
+                masses[link] = LinkMass(mass, sub.number("com", default=length / 2),
+                                        sub.number("izz", default=mass * length**2 / 12, positive=True))
+        else:
+            mass = table.number(link, positive=True)
+            # A number means a uniform bar (com at mid-length, izz = m·L²/12)
+            # or, for the slider, a point mass at its pin.
+            masses[link] = (LinkMass(mass, 0.0, 0.0) if length is None
+                            else LinkMass(mass, length / 2, mass * length**2 / 12))
+    return masses
+
+
+def _effects(table: _Reader, module) -> tuple[tuple[float, float] | None, dict[str, float]]:
+    table.only({"gravity", "damping"})
+    gravity = None
+    if "gravity" in table.table:
+        value = table.table["gravity"]
+        if (not isinstance(value, list) or len(value) != 2
+                or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in value)):
+            table.fail("gravity", f"expected two finite numbers [gx, gy] in m/s², got {value!r}")
+        gravity = (float(value[0]), float(value[1]))
+    damping_table = table.sub("damping")
+    damping_table.only(set(module.PINS))
+    damping = {pin: damping_table.number(pin, nonnegative=True) for pin in module.PINS if pin in damping_table.table}
+    return gravity, damping
+
+
+def _tolerance(table: _Reader) -> dict[str, float]:
+    table.only(set(DEFAULT_TOLERANCE))
+    return {k: table.number(k, positive=True) for k in table.table}
+
+
+def _engines(table: _Reader) -> dict[str, EngineTable]:
+    table.only(set(ENGINE_NAMES))
+    engines = {}
+    for engine in table.table:
+        sub = table.sub(engine)
+        settings = {k: v for k, v in sub.table.items() if k != "tolerance"}
+        engines[engine] = EngineTable(settings, _tolerance(sub.sub("tolerance")))
+    return engines

@@ -53,6 +53,66 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def _engines(names: list[str] | None) -> list[str]:
+    """The requested engines (all installed ones by default); a requested
+    engine that is not installed is an error, an unrequested one is skipped
+    with its reason."""
+    from mechval.engines.registry import adapter, availability
+    if names:
+        for name in names:
+            adapter(name)       # raises UnknownEngine / EngineUnavailable
+        return list(dict.fromkeys(names))
+    engines = []
+    for name, reason in availability().items():
+        if reason:
+            print(f"note: skipping {reason}", file=sys.stderr)
+        else:
+            engines.append(name)
+    return engines
+
+
+def _scenarios(names: list[str] | None, include_hard: bool):
+    from mechval.scenarios import builtin_names
+    if names:
+        return [_load(n) for n in names]
+    loaded = [_load(n) for n in builtin_names()]
+    return [s for s in loaded if include_hard or "hard" not in s.tags]
+
+
+def default_out_dir() -> Path:
+    import datetime
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    return Path("reports") / "out" / f"run-{stamp}"
+
+
+def cmd_run(args) -> int:
+    import os
+    from tqdm import tqdm
+    from mechval.reports.build import summary_markdown, write_report, provenance
+    from .compare import passed
+    from .runner import discrepancies, references_for, run_tasks, tasks_for
+
+    scenarios = _scenarios(args.scenarios, args.hard)
+    engines = _engines(args.engine)
+    out = args.out or default_out_dir()
+    if out.exists():
+        raise UsageError(f"{out} exists; choose another --out or remove it")
+    references = references_for(scenarios)
+    tasks = tasks_for(scenarios, engines)
+    with tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
+              disable=args.quiet) as bar:
+        def done(outcome):
+            bar.set_postfix_str(outcome.task.label + (" FAILED" if outcome.error else ""), refresh=False)
+            bar.update()
+        outcomes = run_tasks(tasks, workers=args.workers or os.cpu_count() or 1, timeout=args.timeout,
+                             on_done=done)
+    records = discrepancies(outcomes, references)
+    write_report(out, scenarios, references, outcomes, records)
+    print(summary_markdown(records, scenarios, provenance()))
+    print(f"report: {out / 'index.html'}")
+    return 0 if passed(records) else 1
+
+
 def cmd_analyse(args) -> int:
     from .analysis import analyse, format_analysis
     print(format_analysis(analyse(_load(args.scenario))))
@@ -68,6 +128,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", default="reference", help="reference|mujoco|pybullet|exudyn")
     p.add_argument("--csv", required=True, type=Path, help="output CSV file")
     p.set_defaults(func=cmd_simulate)
+    p = sub.add_parser("run", help="compare engines with the reference and write the report")
+    p.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="built-in names or .toml paths (default: all)")
+    p.add_argument("--engine", action="append", help="engine to run (repeatable; default: all installed)")
+    p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
+    p.add_argument("--workers", type=int, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--timeout", type=float, default=900.0, help="seconds before an engine run is killed")
+    p.add_argument("--hard", action="store_true", help="include the built-in scenarios tagged 'hard'")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_run)
     p = sub.add_parser("analyse", help="engineering analysis: Grashof, transmission angle, toggles")
     p.add_argument("scenario")
     p.set_defaults(func=cmd_analyse)

@@ -126,24 +126,26 @@ def rotate(theta: np.ndarray, v: Vec2) -> tuple[np.ndarray, np.ndarray]:
     return c * v[0] - s * v[1], s * v[0] + c * v[1]
 
 
-def point_motion(motion: pd.DataFrame, body: str, p: Vec2) -> dict[str, np.ndarray]:
+def point_motion(motion, body: str, p: Vec2, trig: tuple | None = None) -> dict[str, np.ndarray]:
     """Position, velocity and acceleration (world) of the body-fixed point p.
 
     Rigid-body relations r_P = r_O + R·p, v_P = v_O + ω × (R·p),
-    a_P = a_O + α × (R·p) − ω²·(R·p).
+    a_P = a_O + α × (R·p) − ω²·(R·p). `motion` maps raw column names to
+    arrays (a DataFrame will do); `trig` = (cosθ, sinθ) of the body, when
+    the caller already has them.
     """
     if body == GROUND:
-        zero = np.zeros(len(motion))
+        zero = np.zeros(len(motion["t"]))
         return dict(x=zero + p[0], y=zero + p[1], vx=zero, vy=zero, ax=zero, ay=zero)
-    th = motion[f"{body}.theta"].to_numpy()
-    w = motion[f"{body}.omega"].to_numpy()
-    al = motion[f"{body}.alpha"].to_numpy()
-    rx, ry = rotate(th, p)
+    col = lambda q: np.asarray(motion[f"{body}.{q}"])
+    c, s = trig if trig is not None else (np.cos(col("theta")), np.sin(col("theta")))
+    rx, ry = c * p[0] - s * p[1], s * p[0] + c * p[1]
+    w, al = col("omega"), col("alpha")
     return dict(
-        x=motion[f"{body}.x"].to_numpy() + rx,
-        y=motion[f"{body}.y"].to_numpy() + ry,
-        vx=motion[f"{body}.vx"].to_numpy() - w * ry,
-        vy=motion[f"{body}.vy"].to_numpy() + w * rx,
-        ax=motion[f"{body}.ax"].to_numpy() - al * ry - w * w * rx,
-        ay=motion[f"{body}.ay"].to_numpy() + al * rx - w * w * ry,
+        x=col("x") + rx,
+        y=col("y") + ry,
+        vx=col("vx") - w * ry,
+        vy=col("vy") + w * rx,
+        ax=col("ax") - al * ry - w * w * rx,
+        ay=col("ay") + al * rx - w * w * ry,
     )

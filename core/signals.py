@@ -96,8 +96,6 @@ def canonical_signals(
             reasons[name] = missing[raw_name]
         elif raw_name not in raw:
             reasons[name] = f"{source} does not report {raw_name}"
-        elif not np.all(np.isfinite(values)):
-            reasons[name] = f"{source} returned non-finite values"
     return Signals(pd.DataFrame(columns), source, version, dict(settings or {}), reasons)
 
 

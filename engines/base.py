@@ -39,6 +39,8 @@ class EngineAdapter(ABC):
     #: The import name of the engine library, and its distribution on PyPI.
     library: ClassVar[str]
     distribution: ClassVar[str]
+    #: Settings reported by `mechval run`: name → overrides of the defaults.
+    variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
 
     @classmethod
     def unavailable_reason(cls) -> str:

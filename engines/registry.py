@@ -30,8 +30,8 @@ class EngineUnavailable(RuntimeError):
     """The engine's library is not installed or fails to import."""
 
 
-def adapter(name: str) -> "EngineAdapter":
-    """An instance of the named adapter; raises UnknownEngine/EngineUnavailable."""
+def adapter_class(name: str) -> "type[EngineAdapter]":
+    """The named adapter class (imports its module, not the engine library)."""
     if name not in ADAPTERS:
         raise UnknownEngine(name)
     module_name, class_name = ADAPTERS[name].split(":")
@@ -39,7 +39,12 @@ def adapter(name: str) -> "EngineAdapter":
         module = importlib.import_module(module_name)
     except ModuleNotFoundError as exc:
         raise EngineUnavailable(f"{name}: adapter module {module_name} not found ({exc})") from None
-    cls = getattr(module, class_name)
+    return getattr(module, class_name)
+
+
+def adapter(name: str) -> "EngineAdapter":
+    """An instance of the named adapter; raises UnknownEngine/EngineUnavailable."""
+    cls = adapter_class(name)
     reason = cls.unavailable_reason()
     if reason:
         raise EngineUnavailable(f"{name}: {reason}")

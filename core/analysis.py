@@ -1,0 +1,112 @@
+"""Engineering outputs of a linkage analysis: Grashof condition and linkage
+type, transmission angle over the run, toggle / dead-centre instants inside
+the run, and the distance to singularity (condition number of the velocity
+Jacobian). References: Norton, *Design of Machinery*, §2.12 (Grashof),
+§4.10 (transmission angle), §4.12 (toggle positions).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .linkages import linkage
+from .scenario import Scenario
+
+
+@dataclass(frozen=True)
+class Analysis:
+    scenario: str
+    mechanism: str
+    grashof: str                      # "Grashof", "non-Grashof", "change point", or the slider rule
+    linkage_type: str                 # e.g. "crank-rocker"
+    transmission_min: float           # rad, acute angle (0 … π/2)
+    transmission_max: float
+    transmission_t_min: float         # s, where the minimum happens
+    toggles: tuple[tuple[float, str], ...]  # (t, what) inside the run
+    jacobian_cond_max: float
+    jacobian_cond_t: float
+
+
+def _sign_changes(t: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Instants where f changes sign, linearly interpolated between samples."""
+    k = np.flatnonzero(np.signbit(f[:-1]) != np.signbit(f[1:]))
+    return t[k] - f[k] * (t[k + 1] - t[k]) / (f[k + 1] - f[k])
+
+
+def _cond2(m11, m12, m21, m22) -> np.ndarray:
+    """2-norm condition number of 2×2 matrices from their singular values."""
+    frob2 = m11**2 + m12**2 + m21**2 + m22**2
+    det = np.abs(m11 * m22 - m12 * m21)
+    root = np.sqrt(np.maximum(frob2**2 - 4 * det**2, 0.0))
+    s_max, s_min2 = np.sqrt((frob2 + root) / 2), (frob2 - root) / 2
+    with np.errstate(divide="ignore"):
+        return np.where(det > 0, s_max**2 / np.where(det > 0, det, 1.0), np.inf)
+
+
+def fourbar_type(ground: float, crank: float, coupler: float, rocker: float) -> tuple[str, str]:
+    """Grashof condition s + l vs p + q and the resulting linkage type."""
+    lengths = {"ground": ground, "crank": crank, "coupler": coupler, "rocker": rocker}
+    ordered = sorted(lengths.values())
+    s_plus_l, p_plus_q = ordered[0] + ordered[3], ordered[1] + ordered[2]
+    if np.isclose(s_plus_l, p_plus_q, rtol=1e-12):
+        return "change point (s + l = p + q)", "change-point linkage"
+    if s_plus_l > p_plus_q:
+        return "non-Grashof (s + l > p + q)", "triple-rocker"
+    shortest = min(lengths, key=lengths.get)
+    kind = {"ground": "double-crank", "crank": "crank-rocker", "rocker": "crank-rocker (rocker-crank)",
+            "coupler": "double-rocker"}[shortest]
+    return "Grashof (s + l < p + q)", kind
+
+
+def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
+    geometry = scenario.geometry
+    module = linkage(scenario.mechanism)
+    t = np.linspace(0.0, scenario.time.end, samples or max(scenario.time.samples, 2001))
+    k = module.kinematics(module.Geometry(**geometry), scenario.drive, t)
+    th2, th3 = k["theta2"], k["theta3"]
+    toggles = []
+    if scenario.mechanism == "fourbar":
+        th4 = k["theta4"]
+        grashof, kind = fourbar_type(geometry["ground"], geometry["crank"], geometry["coupler"], geometry["rocker"])
+        mu = np.abs(np.arcsin(np.sin(th4 - th3)))   # acute angle coupler–rocker
+        # Velocity Jacobian of the loop in (ω3, ω4): columns b·j·e3, −c·j·e4.
+        b, c = geometry["coupler"], geometry["rocker"]
+        cond = _cond2(-b * np.sin(th3), c * np.sin(th4), b * np.cos(th3), -c * np.cos(th4))
+        toggles += [(float(x), "toggle: crank and coupler collinear (rocker at a limit, ω4 = 0)")
+                    for x in _sign_changes(t, np.sin(th3 - th2))]
+    else:
+        r2, r3, e = geometry["crank"], geometry["conrod"], geometry["offset"]
+        full = r3 > r2 + abs(e)
+        grashof = "crank turns fully (conrod > crank + |offset|)" if full else \
+            "crank cannot turn fully (conrod ≤ crank + |offset|)"
+        kind = "offset slider-crank" if e else "in-line slider-crank"
+        mu = np.pi / 2 - np.abs(np.arcsin(np.sin(th3)))  # conrod vs the guide's normal
+        # Jacobian in (ω3·r3, v4) so both columns carry metres per second.
+        cond = _cond2(-np.sin(th3), -1.0 + 0 * th3, np.cos(th3), 0 * th3)
+        toggles += [(float(x), "dead centre: crank and conrod collinear (slider at a limit, v4 = 0)")
+                    for x in _sign_changes(t, np.sin(th3 - th2))]
+    worst = int(np.argmax(cond))
+    return Analysis(
+        scenario=scenario.name, mechanism=scenario.mechanism, grashof=grashof, linkage_type=kind,
+        transmission_min=float(mu.min()), transmission_max=float(mu.max()),
+        transmission_t_min=float(t[int(np.argmin(mu))]), toggles=tuple(sorted(toggles)),
+        jacobian_cond_max=float(cond[worst]), jacobian_cond_t=float(t[worst]),
+    )
+
+
+def format_analysis(a: Analysis, max_toggles: int = 12) -> str:
+    lines = [
+        f"scenario            {a.scenario} ({a.mechanism})",
+        f"Grashof             {a.grashof}",
+        f"linkage type        {a.linkage_type}",
+        f"transmission angle  {np.degrees(a.transmission_min):.2f}° … {np.degrees(a.transmission_max):.2f}°"
+        f" (minimum at t = {a.transmission_t_min:.4g} s)",
+        f"Jacobian cond. max  {a.jacobian_cond_max:.4g} at t = {a.jacobian_cond_t:.4g} s",
+        f"toggle instants     {len(a.toggles)}",
+    ]
+    lines += [f"  t = {t:10.5f} s  {what}" for t, what in a.toggles[:max_toggles]]
+    if len(a.toggles) > max_toggles:
+        lines.append(f"  … {len(a.toggles) - max_toggles} more")
+    return "\n".join(lines)

@@ -1,0 +1,106 @@
+"""Run engines on scenarios in worker processes, isolated from each other.
+
+Each (scenario, engine, setting) is one task in its own worker process
+(pebble's process pool), so an engine that crashes, hangs past the timeout
+or returns NaN fails its own comparison and nothing else. The parent
+compares every result with the reference (computed once per scenario).
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import TimeoutError as FutureTimeout
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Mapping
+
+import pandas as pd
+from pebble import ProcessExpired, ProcessPool
+
+from .compare import COLUMNS, compare
+from .reference import simulate_reference
+from .scenario import Scenario
+from .signals import Signals
+
+
+@dataclass(frozen=True)
+class Task:
+    scenario: Scenario
+    engine: str
+    setting: str = "default"
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        suffix = "" if self.setting == "default" else f"[{self.setting}]"
+        return f"{self.scenario.name} × {self.engine}{suffix}"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one task produced: signals, or the reason there are none."""
+
+    task: Task
+    signals: Signals | None
+    error: str = ""
+    wall_time: float = 0.0
+
+
+def simulate_task(task: Task) -> tuple[Signals, float]:
+    """Worker body: the engine's canonical signals and the wall time."""
+    from mechval.engines.registry import adapter
+    start = time.perf_counter()
+    signals = adapter(task.engine).simulate(task.scenario, task.overrides)
+    return signals, time.perf_counter() - start
+
+
+def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Task]:
+    """One task per scenario × engine × the engine's reported variants."""
+    from mechval.engines.registry import adapter_class
+    tasks = []
+    for scenario in scenarios:
+        for engine in engines:
+            for setting, overrides in adapter_class(engine).variants.items():
+                tasks.append(Task(scenario, engine, setting, dict(overrides)))
+    return tasks
+
+
+def run_tasks(tasks: list[Task], workers: int, timeout: float,
+              on_done: Callable[[Outcome], None] = lambda outcome: None) -> list[Outcome]:
+    """Run every task in a worker process; failures become Outcomes."""
+    outcomes: list[Outcome] = []
+    with ProcessPool(max_workers=workers, max_tasks=1) as pool:
+        futures = [(task, pool.schedule(simulate_task, args=(task,), timeout=timeout)) for task in tasks]
+        for task, future in futures:
+            try:
+                signals, wall = future.result()
+                outcome = Outcome(task, signals, wall_time=wall)
+            except FutureTimeout:
+                outcome = Outcome(task, None, f"timed out after {timeout:g} s (worker killed)")
+            except ProcessExpired as exc:
+                outcome = Outcome(task, None, f"worker crashed (exit code {exc.exitcode})")
+            except Exception as exc:  # the engine's own error, reported as data
+                outcome = Outcome(task, None, f"{type(exc).__name__}: {exc}")
+            outcomes.append(outcome)
+            on_done(outcome)
+    return outcomes
+
+
+def discrepancies(outcomes: list[Outcome], references: Mapping[str, Signals]) -> pd.DataFrame:
+    """Discrepancy records of every outcome; a failed run is one row."""
+    frames = []
+    for outcome in outcomes:
+        task = outcome.task
+        if outcome.signals is None:
+            row = dict.fromkeys(COLUMNS)
+            row.update(scenario=task.scenario.name, engine=task.engine, setting=task.setting, signal="(run)",
+                       verdict="fail", reason=outcome.error, missing=0)
+            frames.append(pd.DataFrame([row], columns=COLUMNS))
+            continue
+        frames.append(compare(references[task.scenario.name], outcome.signals,
+                              task.scenario.tolerance_for(task.engine), task.scenario.name, task.engine,
+                              task.setting))
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=COLUMNS)
+
+
+def references_for(scenarios: Iterable[Scenario]) -> dict[str, Signals]:
+    return {s.name: simulate_reference(s) for s in scenarios}

@@ -1,0 +1,206 @@
+"""Build the planar Exudyn model of a generic `Mechanism` (Exudyn 1.13.6).
+
+One `NodeRigidBody2D` at each body's centre of mass with an
+`ObjectRigidBody2D`; each revolute joint an `ObjectJointRevolute2D` between
+`MarkerBodyPosition`s at the joint points, each prismatic joint an
+`ObjectJointPrismatic2D(constrainRotation=True)` between `MarkerBodyRigid`s
+(it needs the bodies' orientation). The drive is an
+`ObjectConnectorCoordinate` on the relative rotation of the drive joint's
+bodies with both offset user functions (index-3 uses the offset, index-2 its
+time derivative; without `offsetUserFunction_t` index-2 silently holds the
+crank still — ENGINE_NOTES). Only the scene's effects are added: gravity as
+`LoadMassProportional` when the scene has gravity, and a zero-stiffness
+`ObjectConnectorCoordinateSpringDamper` per damped joint (on the two
+rotation coordinates, or on the relative translation along a guide, which
+turns with body_i: `MarkerBodiesRelativeTranslationCoordinate`).
+
+Every reaction and every node state is recorded by a sensor kept in memory
+(`storeInternal=True`, `writeToFile=False`); the solver settings that make
+those sensors record every step and write no file live in the adapter.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import exudyn as exu
+import exudyn.itemInterface as eii
+import numpy as np
+import pandas as pd
+
+from mechval.mechanism import GROUND, Body, Joint, Mechanism, point_motion, rotate
+
+#: Node sensor outputs: position/rotation, their rates and accelerations.
+NODE_OUTPUTS = {
+    "q": exu.OutputVariableType.Coordinates,
+    "v": exu.OutputVariableType.Coordinates_t,
+    "a": exu.OutputVariableType.Coordinates_tt,
+}
+
+
+@dataclass
+class ExudynModel:
+    """An assembled Exudyn system and the sensor numbers to read back.
+
+    `body_sensors[body][kind]` with kind in NODE_OUTPUTS record the node's
+    displacement coordinates (of x_G, y_G, θ at the centre of mass) from
+    `reference`, and their rates. `joint_sensors[joint]` records a revolute
+    joint's `Force` (Fij, world axes) or a prismatic joint's `ForceLocal`
+    (Fji in body_i's frame); `drive_sensor` records λ of the drive
+    constraint.
+    """
+
+    system: exu.SystemContainer
+    mbs: exu.MainSystem
+    reference: dict[str, np.ndarray] = field(default_factory=dict)
+    body_sensors: dict[str, dict[str, int]] = field(default_factory=dict)
+    joint_sensors: dict[str, int] = field(default_factory=dict)
+    drive_sensor: int = -1
+
+
+def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
+    """The Exudyn model of `mechanism`, in the reference state at t0; the
+    solver's time 0 is t0.
+
+    Reference coordinates are the reference pose at t0 and initial
+    velocities the reference velocities, so the start is consistent; the
+    initial accelerations are the reference accelerations too, because
+    Exudyn's own initial-acceleration solve ignores φ'' of the drive (the
+    adapter switches that solve off unless told otherwise).
+    """
+    system = exu.SystemContainer()
+    mbs = system.AddSystem()
+    model = ExudynModel(system, mbs)
+    start = mechanism.motion(np.array([t0]))
+    if not np.all(np.isfinite(start.to_numpy(dtype=float))):
+        raise ValueError(f"exudyn: the reference cannot give a consistent state at the pre-roll start "
+                         f"t = {t0!r} (the loop cannot close there); shorten the pre-roll")
+
+    ground = mbs.AddObject(eii.ObjectGround())
+    ground_node = mbs.AddNode(eii.NodePointGround())
+    ground_coordinate = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=ground_node, coordinate=0))
+    objects = {GROUND: ground}
+    rotation = {GROUND: ground_coordinate}
+    accelerations = []
+    for body in mechanism.bodies:
+        objects[body.name], rotation[body.name] = _add_body(model, mechanism, body, start, accelerations)
+
+    for joint in mechanism.joints:
+        model.joint_sensors[joint.name] = _add_joint(mbs, mechanism, joint, objects, start)
+        if joint.damping:
+            _add_damper(mbs, mechanism, joint, objects, rotation, ground_coordinate)
+    model.drive_sensor = _add_drive(mbs, mechanism, rotation, model.reference, t0)
+    mbs.Assemble()
+    # Bodies' nodes are the only ones with ODE2 coordinates, in this order.
+    mbs.systemData.SetODE2Coordinates_tt(accelerations, configuration=exu.ConfigurationType.Initial)
+    return model
+
+
+def _add_body(model: ExudynModel, mechanism: Mechanism, body: Body, start: pd.DataFrame,
+              accelerations: list[float]) -> tuple[int, int]:
+    """Node, rigid body, state sensors and (if the scene has gravity) weight
+    of one body, in the reference state `start`; appends the body's initial
+    accelerations. Returns the body's object and rotation-coordinate marker."""
+    mbs = model.mbs
+    g = point_motion(start, body.name, body.com)
+    q0 = np.array([g["x"][0], g["y"][0], start[f"{body.name}.theta"].iloc[0]], dtype=float)
+    node = mbs.AddNode(eii.NodeRigidBody2D(
+        referenceCoordinates=q0.tolist(), initialCoordinates=[0.0, 0.0, 0.0],
+        initialVelocities=[float(g["vx"][0]), float(g["vy"][0]), float(start[f"{body.name}.omega"].iloc[0])]))
+    accelerations += [float(g["ax"][0]), float(g["ay"][0]), float(start[f"{body.name}.alpha"].iloc[0])]
+    number = mbs.AddObject(eii.ObjectRigidBody2D(nodeNumber=node, mass=body.mass, inertia=body.izz))
+    model.reference[body.name] = q0
+    model.body_sensors[body.name] = {
+        kind: mbs.AddSensor(eii.SensorNode(nodeNumber=node, outputVariableType=output,
+                                           storeInternal=True, writeToFile=False))
+        for kind, output in NODE_OUTPUTS.items()}
+    if mechanism.has_gravity:
+        mass_marker = mbs.AddMarker(eii.MarkerBodyMass(bodyNumber=number))
+        mbs.AddLoad(eii.LoadMassProportional(markerNumber=mass_marker, loadVector=[*mechanism.gravity, 0.0]))
+    return number, mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=2))
+
+
+def _local(mechanism: Mechanism, body: str, point: tuple[float, float]) -> list[float]:
+    """A body-frame point relative to the node (the centre of mass); the
+    ground's points are world points."""
+    if body == GROUND:
+        return [point[0], point[1], 0.0]
+    com = mechanism.body(body).com
+    return [point[0] - com[0], point[1] - com[1], 0.0]
+
+
+def _add_joint(mbs: exu.MainSystem, mechanism: Mechanism, joint: Joint, objects: dict[str, int],
+               start: pd.DataFrame) -> int:
+    """The joint and the sensor of its reaction. A revolute joint's markers
+    are ordered [body_j, body_i] so that its `Force` (on the marker-0 body,
+    world axes) is Fij directly. A prismatic joint needs the axis holder
+    body_i as marker 0; its `ForceLocal` is Fji in body_i's frame (Exudyn
+    1.13.6 has no `Force` output for it and reports no couple)."""
+    marker_type = eii.MarkerBodyPosition if joint.kind == "revolute" else eii.MarkerBodyRigid
+    marker_i = mbs.AddMarker(marker_type(bodyNumber=objects[joint.body_i],
+                                         localPosition=_local(mechanism, joint.body_i, joint.point_i)))
+    marker_j = mbs.AddMarker(marker_type(bodyNumber=objects[joint.body_j],
+                                         localPosition=_local(mechanism, joint.body_j, joint.point_j)))
+    if joint.kind == "revolute":
+        output = exu.OutputVariableType.Force
+        number = mbs.AddObject(eii.ObjectJointRevolute2D(markerNumbers=[marker_j, marker_i]))
+    else:
+        output = exu.OutputVariableType.ForceLocal
+        # The normal in body_j's frame: the axis normal in body_i's frame
+        # turned by the (constant) relative rotation θi − θj.
+        relative = _angle(start, joint.body_i) - _angle(start, joint.body_j)
+        nx, ny = rotate(np.float64(relative), (-joint.axis[1], joint.axis[0]))
+        number = mbs.AddObject(eii.ObjectJointPrismatic2D(
+            markerNumbers=[marker_i, marker_j], axisMarker0=[*joint.axis, 0.0],
+            normalMarker1=[float(nx), float(ny), 0.0], constrainRotation=True))
+    return mbs.AddSensor(eii.SensorObject(objectNumber=number, outputVariableType=output,
+                                          storeInternal=True, writeToFile=False))
+
+
+def _angle(start: pd.DataFrame, body: str) -> float:
+    return 0.0 if body == GROUND else float(start[f"{body}.theta"].iloc[0])
+
+
+def _add_damper(mbs: exu.MainSystem, mechanism: Mechanism, joint: Joint, objects: dict[str, int],
+                rotation: dict[str, int], ground_coordinate: int) -> None:
+    """A zero-stiffness coordinate spring-damper: on the relative rotation
+    of a revolute joint, on the relative translation along a guide."""
+    if joint.kind == "revolute":
+        markers = [rotation[joint.body_i], rotation[joint.body_j]]
+    else:
+        slide = mbs.AddMarker(eii.MarkerBodiesRelativeTranslationCoordinate(
+            bodyNumbers=[objects[joint.body_i], objects[joint.body_j]],
+            localPosition0=_local(mechanism, joint.body_i, joint.point_i),
+            localPosition1=_local(mechanism, joint.body_j, joint.point_j), axis0=[*joint.axis, 0.0]))
+        markers = [ground_coordinate, slide]
+    mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(markerNumbers=markers, stiffness=0.0,
+                                                            damping=joint.damping))
+
+
+def _add_drive(mbs: exu.MainSystem, mechanism: Mechanism, rotation: dict[str, int],
+               reference: dict[str, np.ndarray], t0: float) -> int:
+    """θj − θi = φ(t) as a constraint on the rotation displacements:
+    q_j − q_i = φ(t) − (θj_ref − θi_ref), with t = t0 + the solver's time
+    (Exudyn refuses a negative start time, so its clock starts at 0 at t0).
+    Returns the sensor of its λ."""
+    joint = mechanism.joint(mechanism.drive.joint)
+    law = mechanism.drive.law
+    base = float(reference[joint.body_j][2]) - (float(reference[joint.body_i][2]) if joint.body_i != GROUND else 0.0)
+
+    # DriveLaw's φ and φ̇ in plain floats: these run at every Newton
+    # iteration, and numpy on scalars took ~45 % of a run. The adapter's
+    # "drive_error_max" checks the result against DriveLaw itself.
+    phi0, omega0, alpha = float(law.phi0) - base, float(law.omega0), float(law.alpha)
+
+    def offset(mbs, t, item, l_offset):  # noqa: ARG001 - Exudyn's signature
+        t += t0
+        return phi0 + omega0 * t + 0.5 * alpha * t * t
+
+    def offset_t(mbs, t, item, l_offset):  # noqa: ARG001 - Exudyn's signature
+        return omega0 + alpha * (t + t0)
+
+    number = mbs.AddObject(eii.ObjectConnectorCoordinate(
+        markerNumbers=[rotation[joint.body_i], rotation[joint.body_j]],
+        offsetUserFunction=offset, offsetUserFunction_t=offset_t))
+    return mbs.AddSensor(eii.SensorObject(objectNumber=number, outputVariableType=exu.OutputVariableType.Force,
+                                          storeInternal=True, writeToFile=False))

@@ -1,0 +1,335 @@
+"""MuJoCo adapter: the generic planar mechanism in MuJoCo 4.0.
+
+The model (see `mujoco_model`): a spanning tree of hinge/slide joints, the
+loop closed by an equality `connect` at one revolute pin, the crank tied by a
+joint equality to a heavy clock whose coordinate is φ(t), dampers as fixed
+tendons, no geoms, contacts and autoreset off, stiffened soft constraints.
+
+Modes (setting "mode"):
+- "forward": MuJoCo integrates (`mujoco.rollout`, no Python per step) from
+  the reference state a few steps before t = 0 (pre-roll along φ). At every
+  sample the stored state is re-evaluated with `mj_forward` +
+  `mj_rnePostConstraint`; these are exactly the forces of the step that
+  starts at that instant, so they are stamped at the state's own time (not
+  at the end of the step, which would make the error O(dt)).
+- "inverse": `mj_inverse` at the reference q, q̇, q̈ with constraints off;
+  qfrc_inverse is split by least squares into the drive torque on its
+  coordinate and the loop force through the cut pin's Jacobian. This checks
+  frames, signs and inertias independently of time integration.
+
+Conversion of native outputs to Fij (force BY body_i ON body_j, world axes,
+at the sample instant):
+- Tree joint (parent → child): `cfrc_int[child]` is the spatial force
+  [torque, force] by the parent on the child's subtree, world axes, torque
+  about `subtree_com` of the root. Fij = +force when the child is body_j,
+  −force when the child is body_i. For a slide joint the component along the
+  axis is the joint-space force (the damper), not a reaction, and is removed
+  by subtracting qfrc_passive of that coordinate along the axis; the couple M
+  on body_j is the z torque shifted to body_j's joint point, signed likewise.
+- Cut pin: the `connect` rows of `efc_force` are the world force on site1's
+  body, which is body_j: Fij directly (inverse mode: the least-squares λ).
+- drive.T: the joint equality's `efc_force` is the generalized force on the
+  drive hinge coordinate; T = sign·efc (sign −1 if the hinge's child is
+  body_i). A damper at the drive pin is a tendon, not part of this force.
+Only in-plane force components and the z couple are reported: the
+out-of-plane reactions of a planar loop closed in 3D are statically
+indeterminate, so any engine value there is legitimate and meaningless.
+
+High accuracy (`high_accuracy`): a tenth of the default step with solref
+20 steps (the soft constraints' error falls as the square of their time
+constant; at 10 steps RK4 shows a floor near 1e-5 once dt ≲ 1e-4): on
+fourbar-seed every force and torque within ~1e-6 relative.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, ClassVar, Mapping
+
+import mujoco
+import numpy as np
+import pandas as pd
+from mujoco import rollout
+
+from mechval.engines.base import EngineAdapter, RawRun, default_step
+from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism, rotate
+
+from .mujoco_model import CLOCK, Topology, coordinates, mjcf, sites, topology
+
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+class MujocoAdapter(EngineAdapter):
+    name: ClassVar[str] = "mujoco"
+    library: ClassVar[str] = "mujoco"
+    distribution: ClassVar[str] = "mujoco"
+
+    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+        """RK4 at the shared step rule (0.01 rad per step of the fastest
+        motion, ≤ 1 ms); solref 10·dt, below which RK4 has an error floor;
+        solimp at MuJoCo's cap 0.9999; Newton with tolerance 0 and a few
+        iterations (a non-zero tolerance stops Newton at 0 iterations with the
+        heavy clock); clock mass 1e12 kg, so the drive's reaction moves the
+        clock by < 1e-9 rad over a run. The pre-roll lasts 20 solref time
+        constants: the rigidly consistent start is not the soft constraints'
+        equilibrium, and that transient (critically damped) must have died
+        out by t = 0 (4 time constants left 1e-4 errors in α2 and T12)."""
+        return {
+            "mode": "forward",
+            "integrator": "RK4",
+            "timestep": default_step(mechanism, times),
+            "solref_steps": 10.0,
+            "drive_solref_steps": 2.0,
+            "solref_dampratio": 1.0,
+            "solimp": "0.9999 0.9999 0.001 0.5 2",
+            "tolerance": 0.0,
+            "iterations": 3,
+            "clock_mass": 1e12,
+            "preroll_timeconsts": 20.0,
+        }
+
+    def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if settings["mode"] not in ("forward", "inverse"):
+            raise ValueError(f"mujoco: unknown mode {settings['mode']!r} (forward, inverse)")
+        start = time.perf_counter()
+        model = Model(mechanism, times, settings)
+        build_time = time.perf_counter() - start
+        runner = model.forward if settings["mode"] == "forward" else model.inverse
+        frame, info = runner()
+        info.update(build_time_s=build_time, solref=model.solref, solimp=settings["solimp"])
+        return RawRun(frame, {}, info)
+
+
+def high_accuracy(defaults: Mapping[str, Any]) -> dict[str, Any]:
+    """The documented high-accuracy overrides of the default settings."""
+    return {"timestep": defaults["timestep"] / 10, "solref_steps": 20.0}
+
+
+class Model:
+    """A compiled MuJoCo model of the mechanism and its index maps."""
+
+    def __init__(self, mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]):
+        self.mech, self.times, self.settings = mech, np.asarray(times, dtype=float), settings
+        dt = settings["timestep"]
+        interval = float(self.times[1] - self.times[0]) if len(self.times) > 1 else dt
+        self.substeps = int(round(interval / dt))
+        if abs(self.substeps * dt - interval) > 1e-9 * interval:
+            raise ValueError(f"mujoco: timestep {dt} does not divide the sample interval {interval}")
+        preroll = int(np.ceil(settings["preroll_timeconsts"] * settings["solref_steps"]))
+        self.preroll, self.start_motion = self.start(preroll, dt)
+        self.t_start = float(self.start_motion["t"].iloc[0])
+        self.topo: Topology = topology(mech, self.start_motion)
+        self.solref = f'{settings["solref_steps"] * dt:.6g} {settings["solref_dampratio"]:.6g}'
+        self.xml = mjcf(mech, self.topo, settings)
+        self.m = mujoco.MjModel.from_xml_string(self.xml)
+        self.d = mujoco.MjData(self.m)
+        m = self.m
+        self.jid = {tj.joint.name: m.joint(tj.joint.name).id for tj in self.topo.tree}
+        self.jid[CLOCK] = m.joint(CLOCK).id
+        self.bid = {b.name: m.body(b.name).id for b in mech.bodies}
+        self.sid = {name: m.site(name).id for j in mech.joints for name in sites(j)}
+        self.loop_eq, self.drive_eq = m.equality(f"{self.topo.cut.name}__loop").id, m.equality("drive").id
+        self.drive = self.topo.of_joint(mech.drive.joint)
+
+    def start(self, preroll: int, dt: float) -> tuple[int, pd.DataFrame]:
+        """The longest pre-roll (≤ the requested one) along φ(t) over which
+        the reference loop closes, and the reference motion at its start."""
+        while True:
+            t = float(self.times[0]) - preroll * dt + dt * np.arange(preroll + 1)
+            try:
+                with np.errstate(invalid="ignore"):
+                    motion = self.mech.motion(t)
+                closes = bool(np.all(np.isfinite(motion.to_numpy())))
+            except ValueError:                    # the reference refuses the instants
+                closes = False
+            if closes or preroll == 0:
+                return preroll, motion.iloc[:1].reset_index(drop=True)
+            preroll //= 2
+
+    # -- state from the reference ------------------------------------------------
+
+    def set_reference(self, motion: pd.DataFrame, row: int, coords) -> None:
+        """Put the reference q, q̇, q̈ of instant `row` into the data."""
+        d = self.d
+        d.time = float(motion["t"].iloc[row])
+        for name, (q, qd, qdd) in coords.items():
+            jid = self.jid[name]
+            d.qpos[self.m.jnt_qposadr[jid]] = q[row]
+            d.qvel[self.m.jnt_dofadr[jid]] = qd[row]
+            d.qacc[self.m.jnt_dofadr[jid]] = qdd[row]
+
+    # -- modes --------------------------------------------------------------------
+
+    def forward(self) -> tuple[pd.DataFrame, dict[str, Any]]:
+        m, d = self.m, self.d
+        mujoco.mj_resetData(m, d)
+        self.set_reference(self.start_motion, 0, coordinates(self.mech, self.topo, self.start_motion))
+        mujoco.mj_forward(m, d)
+        state0 = np.empty(mujoco.mj_stateSize(m, FULL))
+        mujoco.mj_getState(m, d, state0, FULL)
+        nstep = self.preroll + self.substeps * (len(self.times) - 1)
+        start = time.perf_counter()
+        states, _ = rollout.rollout(m, d, state0[None, :], nstep=nstep) if nstep else (np.empty((1, 0, len(state0))), None)
+        wall = time.perf_counter() - start
+        samples = np.vstack([state0[None, :], states[0]])[self.preroll::self.substeps]
+        snaps, cut_force, torque = [], [], []
+        loop_rows, drive_row = None, None
+        for state in samples:
+            mujoco.mj_setState(m, d, state, FULL)
+            mujoco.mj_forward(m, d)
+            mujoco.mj_rnePostConstraint(m, d)
+            if loop_rows is None:
+                loop_rows, drive_row = self.efc_rows(self.loop_eq)[:2], self.efc_rows(self.drive_eq)[0]
+            snaps.append(self.snapshot())
+            cut_force.append(d.efc_force[loop_rows])
+            torque.append(self.drive.sign * d.efc_force[drive_row])
+        frame, info = self.columns(snaps, np.array(cut_force), np.array(torque))
+        info.update(steps=nstep, preroll_steps_used=self.preroll, wall_time_s=wall,
+                    nan_free=bool(np.all(np.isfinite(samples))))
+        return frame, info
+
+    def inverse(self) -> tuple[pd.DataFrame, dict[str, Any]]:
+        m, d = self.m, self.d
+        m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+        motion = self.mech.motion(self.times)
+        coords = coordinates(self.mech, self.topo, motion)
+        dofs = [m.jnt_dofadr[self.jid[tj.joint.name]] for tj in self.topo.tree]
+        site_i, site_j = (self.sid[s] for s in sites(self.topo.cut))
+        jac_i, jac_j = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        snaps, cut_force, torque = [], [], []
+        start = time.perf_counter()
+        for k in range(len(self.times)):
+            mujoco.mj_resetData(m, d)
+            self.set_reference(motion, k, coords)
+            mujoco.mj_inverse(m, d)
+            mujoco.mj_jacSite(m, d, jac_i, None, site_i)
+            mujoco.mj_jacSite(m, d, jac_j, None, site_j)
+            # qfrc_inverse = e_drive·τ + (J_j − J_i)ᵀ·λ over the mechanism's
+            # coordinates (λ = in-plane force on body_j through the cut pin).
+            basis = np.column_stack([np.eye(m.nv)[:, m.jnt_dofadr[self.jid[self.drive.joint.name]]],
+                                     (jac_j - jac_i)[:2].T])[dofs]
+            tau, lx, ly = np.linalg.lstsq(basis, d.qfrc_inverse[dofs], rcond=None)[0]
+            self.apply_loop_force(np.array([lx, ly]))
+            mujoco.mj_rnePostConstraint(m, d)
+            snaps.append(self.snapshot())
+            cut_force.append((lx, ly))
+            torque.append(self.drive.sign * tau)
+        frame, info = self.columns(snaps, np.array(cut_force), np.array(torque))
+        info.update(wall_time_s=time.perf_counter() - start)
+        return frame, info
+
+    def apply_loop_force(self, force: np.ndarray) -> None:
+        """λ on body_j and −λ on body_i at the cut pin, as xfrc_applied
+        (force at the body's centre of mass plus the moment of the shift)."""
+        m, d = self.m, self.d
+        cut = self.topo.cut
+        d.xfrc_applied[:] = 0
+        for body, site, sign in ((cut.body_j, sites(cut)[1], 1.0), (cut.body_i, sites(cut)[0], -1.0)):
+            if body == GROUND:
+                continue
+            bid = self.bid[body]
+            f = np.array([sign * force[0], sign * force[1], 0.0])
+            arm = d.site_xpos[self.sid[site]] - d.xipos[bid]
+            d.xfrc_applied[bid, :3] += f
+            d.xfrc_applied[bid, 3:] += np.cross(arm, f)
+
+    # -- read-out -----------------------------------------------------------------
+
+    def efc_rows(self, eq_id: int) -> np.ndarray:
+        """Indices of the efc rows of the equality `eq_id` (fixed layout:
+        equality rows only, in model order)."""
+        d = self.d
+        return np.flatnonzero((d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+                              & (d.efc_id[:d.nefc] == eq_id))
+
+    def snapshot(self) -> dict[str, np.ndarray]:
+        """Copies of the data arrays the read-out needs, at this instant
+        (after mj_forward/mj_inverse and mj_rnePostConstraint)."""
+        d = self.d
+        return dict(t=np.array(d.time), qpos=d.qpos.copy(), qvel=d.qvel.copy(), qacc=d.qacc.copy(),
+                    xpos=d.xpos.copy(), cvel=d.cvel.copy(), cacc=d.cacc.copy(), cfrc_int=d.cfrc_int.copy(),
+                    subtree_com=d.subtree_com.copy(), site_xpos=d.site_xpos.copy(),
+                    xaxis=d.xaxis.copy(), qfrc_passive=d.qfrc_passive.copy())
+
+    def columns(self, snaps: list[dict[str, np.ndarray]], cut_force: np.ndarray,
+                drive_torque: np.ndarray) -> tuple[pd.DataFrame, dict[str, Any]]:
+        """Raw columns at every sample (vectorised over samples) and summary
+        facts. `cut_force` (n, 2) is Fij of the cut pin, `drive_torque` (n,)."""
+        m, mech = self.m, self.mech
+        S = {k: np.stack([s[k] for s in snaps]) for k in snaps[0]}
+        gravity = np.zeros(3) if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else m.opt.gravity
+        col: dict[str, np.ndarray] = {"t": self.times}
+        for body, bid in self.bid.items():
+            theta = omega = alpha = 0.0
+            for tj in self.topo.path(body):
+                jid = self.jid[tj.joint.name]
+                if tj.joint.kind == "revolute":
+                    theta = theta + S["qpos"][:, m.jnt_qposadr[jid]]
+                    omega = omega + S["qvel"][:, m.jnt_dofadr[jid]]
+                    alpha = alpha + S["qacc"][:, m.jnt_dofadr[jid]]
+                else:
+                    theta = theta + tj.rel0
+            # cvel/cacc are spatial vectors at the root's subtree_com: shift to
+            # the body origin, make the acceleration classical (+ ω × v), and
+            # add back gravity (cacc carries −g from the world, accelerometer style).
+            r = S["xpos"][:, bid] - S["subtree_com"][:, m.body_rootid[bid]]
+            w, v_c = S["cvel"][:, bid, :3], S["cvel"][:, bid, 3:]
+            dw, a_c = S["cacc"][:, bid, :3], S["cacc"][:, bid, 3:]
+            v = v_c + np.cross(w, r)
+            a = a_c + np.cross(dw, r) + np.cross(w, v) + gravity
+            col.update({f"{body}.x": S["xpos"][:, bid, 0], f"{body}.y": S["xpos"][:, bid, 1],
+                        f"{body}.theta": np.broadcast_to(theta, self.times.shape).astype(float),
+                        f"{body}.vx": v[:, 0], f"{body}.vy": v[:, 1], f"{body}.omega": omega + 0.0 * self.times,
+                        f"{body}.ax": a[:, 0], f"{body}.ay": a[:, 1], f"{body}.alpha": alpha + 0.0 * self.times})
+        for tj in self.topo.tree:
+            bid, jid, name = self.bid[tj.child], self.jid[tj.joint.name], tj.joint.name
+            torque, force = S["cfrc_int"][:, bid, :3], S["cfrc_int"][:, bid, 3:]
+            if tj.joint.kind == "prismatic":
+                # The damper's force acts along the axis through body_j's joint
+                # point: it has no moment about that point, so the couple is
+                # the whole moment there, and the reaction force is the rest.
+                p_j = S["site_xpos"][:, self.sid[sites(tj.joint)[1]]]
+                moment = torque + np.cross(S["subtree_com"][:, m.body_rootid[bid]] - p_j, force)
+                col[f"{name}.M"] = tj.sign * (moment[:, 2] - self.cut_damper_couple(tj.child, col))
+                force = force - S["qfrc_passive"][:, m.jnt_dofadr[jid], None] * S["xaxis"][:, jid]
+            col[f"{name}.Fx"], col[f"{name}.Fy"] = tj.sign * force[:, 0], tj.sign * force[:, 1]
+        cut = self.topo.cut.name
+        col[f"{cut}.Fx"], col[f"{cut}.Fy"] = cut_force[:, 0], cut_force[:, 1]
+        col[DRIVE_TORQUE] = drive_torque
+        col["health.gap"] = self.gaps(S["site_xpos"], col)
+        frame = pd.DataFrame(col)[["t"] + mech.motion_columns() + mech.reaction_columns() + ["health.gap"]]
+        drive_q = S["qpos"][:, m.jnt_qposadr[self.jid[self.drive.joint.name]]]
+        info = {"closure_gap_max": float(frame["health.gap"].max()),
+                "drive_error_max": float(np.abs(self.drive.sign * drive_q - mech.drive.law.angle(self.times)).max()),
+                "time_stamp_error_max": float(np.abs(S["t"] - self.times).max())}
+        return frame, info
+
+    def cut_damper_couple(self, child: str, col: Mapping[str, np.ndarray]) -> np.ndarray | float:
+        """The couple the cut pin's damper physically puts on the subtree of
+        `child`, when the pin joins that subtree to the rest.
+
+        Its tendon applies the same generalized force through the hinges on
+        the tree paths, so the motion is exact, but the couple lands on the
+        path's bodies instead of the pin's: the moment MuJoCo transmits
+        through a joint above the pin includes it, and it is taken out here.
+        """
+        cut, below = self.topo.cut, self.topo.subtree(child)
+        if cut.damping == 0.0 or (cut.body_i in below) == (cut.body_j in below):
+            return 0.0
+        omega = lambda b: 0.0 if b == GROUND else col[f"{b}.omega"]
+        couple_on_j = -cut.damping * (omega(cut.body_j) - omega(cut.body_i))
+        return couple_on_j if cut.body_j in below else -couple_on_j
+
+    def gaps(self, site_xpos: np.ndarray, col: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Per sample, the largest distance between the two sides of any
+        joint (m); for a prismatic joint the offset across its axis."""
+        worst = np.zeros(len(site_xpos))
+        for j in self.mech.joints:
+            p_i, p_j = (site_xpos[:, self.sid[s], :2] for s in sites(j))
+            r = p_j - p_i
+            if j.kind == "prismatic":
+                theta_i = np.zeros(len(r)) if j.body_i == GROUND else col[f"{j.body_i}.theta"]
+                u = np.column_stack(rotate(theta_i, j.axis))
+                r = r - np.sum(r * u, axis=1, keepdims=True) * u
+            worst = np.maximum(worst, np.hypot(r[:, 0], r[:, 1]))
+        return worst

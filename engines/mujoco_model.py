@@ -1,0 +1,279 @@
+"""MJCF for a generic planar `Mechanism` (MuJoCo 4.0) and the maps between
+MuJoCo's coordinates and the mechanism's bodies and joints.
+
+Model layout (ENGINE_NOTES, MuJoCo):
+- A spanning tree of the joints from the ground: every body is the child of
+  the body it is joined to on the way from the ground, on a hinge (revolute)
+  or slide (prismatic) joint. A prismatic joint between two moving bodies is
+  simply a slide joint whose parent is not the world.
+- The loop is closed at one revolute pin other than the drive (the "cut"),
+  with an equality `connect` between a site on each side.
+- Every body frame is the mechanism's body frame; in the zero configuration a
+  child's frame has the rotation of its parent (hinge) or the fixed relative
+  rotation of the prismatic pair, and the joint points coincide. So a hinge
+  coordinate is the relative angle θchild − θparent and a slide coordinate is
+  the travel of the joint point along the axis.
+- The drive is a heavy "clock" body on a z slide (out of the plane, so in-plane
+  gravity does not act on it) whose coordinate is φ(t): it starts at φ, φ̇
+  and a constant actuator bias force gives it φ̈ = alpha; a joint equality
+  with a linear polycoef ties the drive hinge to it. Nothing runs in Python
+  per step, so `mujoco.rollout` can integrate.
+- Dampers are fixed tendons over the hinge/slide coordinates whose rate is the
+  joint's relative rate (for the cut pin the path sums, ω_j − ω_i), so every
+  damper is evaluated in every RK4 stage and none hides in a joint default.
+- No geoms, contacts disabled, autoreset disabled, radians, explicit
+  inertials, no joint damping/armature/friction/stiffness/limits.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+
+from mechval.mechanism import GROUND, Joint, Mechanism, point_motion, rotate
+
+CLOCK = "mechval_clock"
+
+
+@dataclass(frozen=True)
+class TreeJoint:
+    """A mechanism joint as a MuJoCo tree joint from `parent` to `child`.
+
+    `sign` = +1 when the child is the joint's body_j: the MuJoCo coordinate
+    is then the motion of body_j relative to body_i; −1 when reversed.
+    `rel0` is the child's rotation relative to the parent in the zero
+    configuration (0 for a hinge; the fixed pair angle for a slide).
+    """
+
+    joint: Joint
+    parent: str
+    child: str
+    rel0: float = 0.0
+
+    @property
+    def sign(self) -> float:
+        return 1.0 if self.child == self.joint.body_j else -1.0
+
+    @property
+    def point_parent(self) -> tuple[float, float]:
+        return self.joint.point_i if self.sign > 0 else self.joint.point_j
+
+    @property
+    def point_child(self) -> tuple[float, float]:
+        return self.joint.point_j if self.sign > 0 else self.joint.point_i
+
+
+@dataclass(frozen=True)
+class Topology:
+    """The spanning tree (parents before children) and the loop-closing pin."""
+
+    tree: tuple[TreeJoint, ...]
+    cut: Joint
+
+    def of_child(self, body: str) -> TreeJoint:
+        return next(tj for tj in self.tree if tj.child == body)
+
+    def of_joint(self, name: str) -> TreeJoint:
+        return next(tj for tj in self.tree if tj.joint.name == name)
+
+    def subtree(self, body: str) -> set[str]:
+        """`body` and every body below it in the tree."""
+        below = {body}
+        for tj in self.tree:                     # parents come before children
+            if tj.parent in below:
+                below.add(tj.child)
+        return below
+
+    def path(self, body: str) -> list[TreeJoint]:
+        """Tree joints from the ground to `body`."""
+        path = []
+        while body != GROUND:
+            tj = self.of_child(body)
+            path.insert(0, tj)
+            body = tj.parent
+        return path
+
+
+def topology(mech: Mechanism, motion0: pd.DataFrame) -> Topology:
+    """Cut the single loop at the last revolute pin (not the drive) that
+    leaves a spanning tree; `motion0` (one instant) fixes prismatic pairs'
+    relative rotation."""
+    for cut in reversed(mech.joints):
+        if cut.kind != "revolute" or cut.name == mech.drive.joint:
+            continue
+        tree = _spanning_tree(mech, cut, motion0)
+        if tree is not None:
+            return Topology(tree, cut)
+    raise ValueError(f"{mech.name}: MuJoCo adapter needs a single loop that can be closed at a "
+                     "revolute pin other than the drive")
+
+
+def _spanning_tree(mech: Mechanism, cut: Joint, motion0: pd.DataFrame) -> tuple[TreeJoint, ...] | None:
+    remaining = [j for j in mech.joints if j is not cut]
+    reached, order, queue = {GROUND}, [], deque([GROUND])
+    while queue:
+        body = queue.popleft()
+        for j in [j for j in remaining if body in (j.body_i, j.body_j)]:
+            remaining.remove(j)
+            child = j.body_j if j.body_i == body else j.body_i
+            if child in reached:
+                return None                      # a second loop
+            rel0 = 0.0
+            if j.kind == "prismatic":
+                rel0 = _angle(motion0, child) - _angle(motion0, body)
+            order.append(TreeJoint(j, body, child, rel0))
+            reached.add(child)
+            queue.append(child)
+    return tuple(order) if not remaining and len(reached) == len(mech.bodies) + 1 else None
+
+
+def _angle(motion: pd.DataFrame, body: str) -> float:
+    return 0.0 if body == GROUND else float(motion[f"{body}.theta"].iloc[0])
+
+
+def _quat_z(angle: float) -> str:
+    return f"{np.cos(angle / 2):.17g} 0 0 {np.sin(angle / 2):.17g}"
+
+
+def _vec(*values: float) -> str:
+    return " ".join(f"{float(v):.17g}" for v in values)
+
+
+def sites(joint: Joint) -> tuple[str, str]:
+    """Names of the joint's sites on body_i and on body_j."""
+    return f"{joint.name}__i", f"{joint.name}__j"
+
+
+def damper_coefficients(topo: Topology, joint: Joint) -> dict[str, float]:
+    """Joint-coordinate coefficients of the damper rate of `joint`: its own
+    coordinate for a tree joint, ω_j − ω_i as path sums for the cut pin."""
+    if joint is not topo.cut:
+        return {joint.name: 1.0}
+    coef: dict[str, float] = {}
+    for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
+        for tj in topo.path(body):
+            if tj.joint.kind == "revolute":
+                coef[tj.joint.name] = coef.get(tj.joint.name, 0.0) + sign
+    return {name: c for name, c in coef.items() if c != 0.0}
+
+
+def planar_izz(topo: Topology, body: str, izz: float, mass: float) -> float:
+    """The izz MuJoCo gets. MuJoCo refuses a zero inertia on a moving body;
+    a point mass (izz = 0) that only slides never rotates, so any izz is
+    exact for it and its mass·(1 m)² stands in. A rotating point mass has no
+    exact MuJoCo equivalent and is refused rather than approximated."""
+    if izz > 0.0:
+        return izz
+    if any(tj.joint.kind == "revolute" for tj in topo.path(body)):
+        raise ValueError(f"MuJoCo needs izz > 0 for the rotating body {body!r}")
+    return mass * 1.0
+
+
+def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any]) -> str:
+    """The MJCF text of the mechanism with the given adapter settings."""
+    gx, gy = mech.gravity
+    site_xml: dict[str, list[str]] = {}
+    for j in mech.joints:
+        for body, point, name in zip((j.body_i, j.body_j), (j.point_i, j.point_j), sites(j)):
+            site_xml.setdefault(body, []).append(f'<site name="{name}" pos="{_vec(*point, 0)}"/>')
+
+    def body_xml(tj: TreeJoint) -> str:
+        b = mech.body(tj.child)
+        px, py = tj.point_parent
+        cx, cy = rotate(np.asarray(tj.rel0), tj.point_child)
+        if tj.joint.kind == "revolute":
+            joint = f'<joint name="{tj.joint.name}" type="hinge" pos="{_vec(*tj.point_child, 0)}" axis="0 0 1"/>'
+        else:
+            # The axis is given in body_i's frame; MuJoCo wants it in the child's.
+            ax, ay = rotate(np.asarray(-tj.rel0 if tj.sign > 0 else 0.0), tj.joint.axis)
+            joint = f'<joint name="{tj.joint.name}" type="slide" pos="{_vec(*tj.point_child, 0)}" axis="{_vec(ax, ay, 0)}"/>'
+        izz = planar_izz(topo, b.name, b.izz, b.mass)
+        # Only izz acts in the plane; ixx = iyy = izz/2 keeps the tensor valid.
+        inertial = (f'<inertial pos="{_vec(*b.com, 0)}" mass="{b.mass:.17g}" '
+                    f'diaginertia="{_vec(izz / 2, izz / 2, izz)}"/>')
+        children = "".join(body_xml(c) for c in topo.tree if c.parent == tj.child)
+        return (f'<body name="{b.name}" pos="{_vec(px - float(cx), py - float(cy), 0)}" quat="{_quat_z(tj.rel0)}">'
+                f'{joint}{inertial}{"".join(site_xml.get(b.name, []))}{children}</body>')
+
+    solref = f'{settings["solref_steps"] * settings["timestep"]:.17g} {settings["solref_dampratio"]:.17g}'
+    drive_solref = f'{settings["drive_solref_steps"] * settings["timestep"]:.17g} {settings["solref_dampratio"]:.17g}'
+    solimp = settings["solimp"]
+    drive = topo.of_joint(mech.drive.joint)
+    law = mech.drive.law
+    clock_mass = settings["clock_mass"]
+    i_site, j_site = sites(topo.cut)
+    tendons = []
+    for j in mech.damped_joints:
+        coef = "".join(f'<joint joint="{n}" coef="{c:.17g}"/>' for n, c in damper_coefficients(topo, j).items())
+        tendons.append(f'<fixed name="{j.name}__damper" damping="{j.damping:.17g}">{coef}</fixed>')
+    roots = "".join(body_xml(tj) for tj in topo.tree if tj.parent == GROUND)
+    return f"""<mujoco model="{mech.name}">
+  <compiler angle="radian" inertiafromgeom="false" autolimits="true" boundmass="0" boundinertia="0"/>
+  <option timestep="{settings['timestep']:.17g}" integrator="{settings['integrator']}"
+          gravity="{_vec(gx, gy, 0)}" density="0" viscosity="0" wind="0 0 0"
+          solver="Newton" tolerance="{settings['tolerance']:.17g}" iterations="{settings['iterations']}"
+          noslip_iterations="0">
+    <flag contact="disable" autoreset="disable" gravity="{'enable' if mech.has_gravity else 'disable'}"/>
+  </option>
+  <default>
+    <joint damping="0" armature="0" frictionloss="0" stiffness="0" limited="false"/>
+  </default>
+  <worldbody>
+    {"".join(site_xml.get(GROUND, []))}
+    {roots}
+    <body name="{CLOCK}">
+      <joint name="{CLOCK}" type="slide" axis="0 0 1"/>
+      <inertial pos="0 0 0" mass="{clock_mass:.17g}" diaginertia="1 1 1"/>
+    </body>
+  </worldbody>
+  <equality>
+    <connect name="{topo.cut.name}__loop" site1="{j_site}" site2="{i_site}" solref="{solref}" solimp="{solimp}"/>
+    <joint name="drive" joint1="{drive.joint.name}" joint2="{CLOCK}" polycoef="0 {drive.sign:.17g} 0 0 0"
+           solref="{drive_solref}" solimp="{solimp}"/>
+  </equality>
+  <tendon>{"".join(tendons)}</tendon>
+  <actuator>
+    <general name="{CLOCK}" joint="{CLOCK}" gainprm="0" biastype="affine"
+             biasprm="{clock_mass * law.alpha:.17g} 0 0" ctrllimited="false" forcelimited="false"/>
+  </actuator>
+</mujoco>"""
+
+
+def coordinates(mech: Mechanism, topo: Topology, motion: pd.DataFrame) -> dict[str, tuple[np.ndarray, ...]]:
+    """Reference (q, q̇, q̈) of every tree joint and the clock, from the
+    reference body motion (used for the initial state and inverse mode).
+
+    Hinge: q = θchild − θparent. Slide: q = sign·s with s = r·u the travel
+    of P_j from P_i along the axis u (body_i frame, rotating with ω_i):
+    ṡ = ṙ·u + r·u̇, s̈ = r̈·u + 2ṙ·u̇ + r·ü, u̇ = ω_i k×u, ü = α_i k×u − ω_i² u.
+    """
+    zero = np.zeros(len(motion))
+    rate = lambda b, q: zero if b == GROUND else motion[f"{b}.{q}"].to_numpy()
+    out = {}
+    for tj in topo.tree:
+        j = tj.joint
+        if j.kind == "revolute":
+            out[j.name] = tuple(tj.sign * (rate(j.body_j, q) - rate(j.body_i, q)) for q in ("theta", "omega", "alpha"))
+            continue
+        Pj, Pi = point_motion(motion, j.body_j, j.point_j), point_motion(motion, j.body_i, j.point_i)
+        th, w, al = (rate(j.body_i, q) for q in ("theta", "omega", "alpha"))
+        ux, uy = rotate(th, j.axis)
+        kux, kuy = -uy, ux                                   # k × u
+        r = (Pj["x"] - Pi["x"], Pj["y"] - Pi["y"])
+        rd = (Pj["vx"] - Pi["vx"], Pj["vy"] - Pi["vy"])
+        rdd = (Pj["ax"] - Pi["ax"], Pj["ay"] - Pi["ay"])
+        ud = (w * kux, w * kuy)
+        udd = (al * kux - w * w * ux, al * kuy - w * w * uy)
+        dot = lambda a, b: a[0] * b[0] + a[1] * b[1]
+        s = dot(r, (ux, uy))
+        sd = dot(rd, (ux, uy)) + dot(r, ud)
+        sdd = dot(rdd, (ux, uy)) + 2 * dot(rd, ud) + dot(r, udd)
+        out[j.name] = (tj.sign * s, tj.sign * sd, tj.sign * sdd)
+    t = motion["t"].to_numpy()
+    law = mech.drive.law
+    out[CLOCK] = (law.angle(t), law.rate(t), law.acceleration(t))
+    return out

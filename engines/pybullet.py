@@ -1,0 +1,267 @@
+"""PyBullet 3.2.7 adapter: build (`pybullet_model`), drive, step, read.
+
+Conversion of PyBullet's native output to the Fij convention (DESIGN.md):
+- A joint modelled as a multibody joint: its force/torque sensor, with
+  `jointFeedbackMode = WORLD_SPACE | JOINT_FRAME`, gives the force by the
+  parent link on the child link in world axes (`getJointState(...)[2][:2]`).
+  Fij is that force when the child is the joint's body_j, its negative when
+  the child is body_i.
+- A joint modelled as a user constraint: `getConstraintState(cid)[:2]` is the
+  force on the constraint's child (world axes); same rule.
+- Drive torque: `getJointState(drive)[3]`, the motor torque on the child
+  link (the crank), i.e. T on body_j (negated if the child is body_i).
+  Dampers are applied as external loads, so they are not part of it.
+- Time stamp: every force and torque read after stepping from t_n to
+  t_n+1 is the one that acted during that step, i.e. at t_n (stamping it at
+  t_n+1 would turn an O(dt²) error into O(dt); ENGINE_NOTES).
+- Semi-implicit Euler velocities stand for the step's middle, so the
+  velocity at t_n is the mean of the readings before and after the step
+  from t_n, and the acceleration at t_n is their difference over dt (the
+  acceleration the engine applied in that step).
+
+Only in-plane force components and the z torque are reported: the
+out-of-plane reactions of a planar loop built from 3D joints are
+statically indeterminate, so engines may legitimately return anything there.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+import pybullet as p
+
+from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism, rotate
+
+from .base import EngineAdapter, RawRun, default_step
+from .pybullet_model import NO_CAP, Model, build
+
+#: Step rule factor (rad per step at the run's peak rate Ω, see
+#: base.default_step). PyBullet's rocker sensor converges only as O(dt)
+#: (ENGINE_NOTES), so it gets a finer step than the shared 0.01 rad.
+RAD_PER_STEP = 0.002
+#: Steps along φ(t) before t = 0, from the reference state: the loop
+#: closure and the mid-step velocities settle before the first sample.
+PREROLL_STEPS = 10
+
+
+class PybulletAdapter(EngineAdapter):
+    name = "pybullet"
+    library = "pybullet"
+    distribution = "pybullet"
+
+    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+        return {
+            "timestep": default_step(mechanism, times, rad_per_step=RAD_PER_STEP),
+            "preroll_steps": PREROLL_STEPS,
+            "layout": "split",
+        }
+
+    def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        interval = float(times[1] - times[0])
+        per_sample = max(1, int(np.ceil(interval / settings["timestep"] - 1e-9)))
+        dt = interval / per_sample
+        preroll = int(settings["preroll_steps"])
+        started = time.perf_counter()
+        model = build(mechanism, dt, settings["layout"], float(times[0]) - preroll * dt)
+        try:
+            built = time.perf_counter()
+            frame, steps = Stepper(mechanism, model, times, per_sample, preroll).run()
+            wall = time.perf_counter() - built
+        finally:
+            p.disconnect(model.client)
+        drive = mechanism.joint(mechanism.drive.joint)
+        relative = frame[f"{drive.body_j}.theta"] - (0.0 if drive.body_i == GROUND else frame[f"{drive.body_i}.theta"])
+        info = {
+            "timestep_used": dt, "steps": steps, "preroll_steps_used": preroll,
+            "closure_gap_max": float(frame["health.gap"].max()),
+            "drive_error_max": float(np.abs(relative - mechanism.drive.law.angle(times)).max()),
+            "build_time_s": built - started, "wall_time_s": wall,
+        }
+        missing = {f"{j.name}.M": "PyBullet's couple of a prismatic joint is not converted to the joint point"
+                   for j in mechanism.joints if j.kind == "prismatic"}
+        return RawRun(frame, missing, info)
+
+
+class Stepper:
+    """The stepping loop of one run: drive target, dampers, readings."""
+
+    def __init__(self, mechanism: Mechanism, model: Model, times: np.ndarray, per_sample: int, preroll: int):
+        self.mech, self.model, self.times = mechanism, model, np.asarray(times, dtype=float)
+        self.per_sample, self.preroll, self.c = per_sample, preroll, model.client
+        self.dt = model.timestep
+        drive = mechanism.joint(mechanism.drive.joint)
+        if drive.name not in model.tree_joints or GROUND not in (drive.body_i, drive.body_j):
+            raise ValueError(f"pybullet: drive joint {drive.name!r} must join a body to the ground")
+        self.drive = model.tree_joints[drive.name]
+        self.drive_sign = 1.0 if self.drive.child == drive.body_j else -1.0
+        self.damped = mechanism.damped_joints
+
+    def run(self) -> tuple[pd.DataFrame, int]:
+        n_samples = len(self.times)
+        total = self.preroll + (n_samples - 1) * self.per_sample + 1
+        t_next = self.times[0] + (np.arange(total) - self.preroll + 1) * self.dt
+        law = self.mech.drive.law
+        # Lands the crank exactly on φ(t_n+1) (motor PD with unit gains).
+        sign = self.drive_sign
+        target_pos = sign * (law.angle(t_next) - self.dt * law.rate(t_next))
+        target_vel = sign * law.rate(t_next)
+        h = self.drive.handle
+        before, after, reactions = [], [], []
+        previous_rates = None
+        for n in range(total):
+            sampled = n >= self.preroll and (n - self.preroll) % self.per_sample == 0
+            if sampled or self.damped:
+                state = self.read_bodies()
+            if sampled:
+                before.append(state)
+            if self.damped:
+                previous_rates = self.apply_dampers(state, previous_rates)
+            p.setJointMotorControl2(h.uid, h.link, p.POSITION_CONTROL, targetPosition=target_pos[n],
+                                    targetVelocity=target_vel[n], positionGain=1.0, velocityGain=1.0,
+                                    force=NO_CAP, physicsClientId=self.c)
+            p.stepSimulation(physicsClientId=self.c)
+            if sampled:
+                after.append(self.read_bodies())
+                reactions.append(self.read_reactions())
+        return self.assemble(before, after, reactions), total
+
+    def read_bodies(self) -> dict[str, np.ndarray]:
+        """Per body: frame origin x, y, wrapped angle, origin vx, vy, ω."""
+        state = {}
+        for body in self.mech.bodies:
+            h = self.model.bodies[body.name]
+            if h.link < 0:
+                pos, orn = p.getBasePositionAndOrientation(h.uid, physicsClientId=self.c)
+                vel, ang = p.getBaseVelocity(h.uid, physicsClientId=self.c)
+            else:
+                s = p.getLinkState(h.uid, h.link, computeLinkVelocity=1, computeForwardKinematics=1,
+                                   physicsClientId=self.c)
+                pos, orn, vel, ang = s[0], s[1], s[6], s[7]
+            x, y, z, w = orn
+            theta = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+            # PyBullet reports the COM; shift to the body frame origin.
+            rx, ry = rotate(theta, (-body.com[0], -body.com[1]))
+            state[body.name] = np.array([pos[0] + rx, pos[1] + ry, theta,
+                                         vel[0] - ang[2] * ry, vel[1] + ang[2] * rx, ang[2]])
+        return state
+
+    def joint_rates(self, state: dict[str, np.ndarray]) -> dict[str, float]:
+        """Relative rate of every damped joint: ω_j − ω_i, or the slide speed
+        of point_j relative to point_i along the axis (fixed in body_i)."""
+        rates = {}
+        for joint in self.damped:
+            si, sj = (state.get(b, np.zeros(6)) for b in (joint.body_i, joint.body_j))
+            if joint.kind == "revolute":
+                rates[joint.name] = sj[5] - si[5]
+                continue
+            ux, uy = rotate(si[2], joint.axis)
+            vi = _point_velocity(si, joint.point_i)
+            vj = _point_velocity(sj, joint.point_j)
+            rates[joint.name] = (vj[0] - vi[0]) * ux + (vj[1] - vi[1]) * uy
+        return rates
+
+    def apply_dampers(self, state: dict[str, np.ndarray], previous: dict[str, float] | None) -> dict[str, float]:
+        """Equal and opposite damper loads for the coming step, with rates
+        extrapolated to t_n (1.5·v_n − 0.5·v_n−1: the readings are mid-step
+        values; plain v_n is O(dt), ENGINE_NOTES). Returns this step's rates."""
+        rates = self.joint_rates(state)
+        previous = previous or rates
+        for joint in self.damped:
+            load = -joint.damping * (1.5 * rates[joint.name] - 0.5 * previous[joint.name])
+            for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
+                if body == GROUND:
+                    continue
+                h = self.model.bodies[body]
+                if joint.kind == "revolute":
+                    p.applyExternalTorque(h.uid, h.link, (0.0, 0.0, sign * load), p.WORLD_FRAME,
+                                          physicsClientId=self.c)
+                    continue
+                si = state.get(joint.body_i, np.zeros(6))
+                ux, uy = rotate(si[2], joint.axis)
+                sj = state[joint.body_j]
+                px, py = rotate(sj[2], joint.point_j)
+                p.applyExternalForce(h.uid, h.link, (sign * load * ux, sign * load * uy, 0.0),
+                                     (sj[0] + px, sj[1] + py, 0.0), p.WORLD_FRAME, physicsClientId=self.c)
+        return rates
+
+    def read_reactions(self) -> dict[str, float]:
+        """Fij of every joint and the drive torque, from the step just taken."""
+        out = {}
+        for name, tj in self.model.tree_joints.items():
+            force = p.getJointState(tj.handle.uid, tj.handle.link, physicsClientId=self.c)[2]
+            sign = 1.0 if tj.child == tj.joint.body_j else -1.0
+            out[f"{name}.Fx"], out[f"{name}.Fy"] = sign * force[0], sign * force[1]
+        for name, lc in self.model.constraints.items():
+            force = p.getConstraintState(lc.cid, physicsClientId=self.c)
+            sign = 1.0 if lc.child == lc.joint.body_j else -1.0
+            out[f"{name}.Fx"], out[f"{name}.Fy"] = sign * force[0], sign * force[1]
+        h = self.drive.handle
+        out[DRIVE_TORQUE] = self.drive_sign * p.getJointState(h.uid, h.link, physicsClientId=self.c)[3]
+        return out
+
+    def assemble(self, before: list, after: list, reactions: list) -> pd.DataFrame:
+        """Raw columns at the samples (see the module docstring for stamps)."""
+        columns: dict[str, np.ndarray] = {"t": self.times}
+        t_start = self.times[0] - self.preroll * self.dt
+        start = self.mech.motion(np.array([t_start]))
+        for body in self.mech.bodies:
+            b = body.name
+            pre = np.array([s[b] for s in before])
+            post = np.array([s[b] for s in after])
+            vel = 0.5 * (pre[:, 3:] + post[:, 3:])
+            acc = (post[:, 3:] - pre[:, 3:]) / self.dt
+            theta = _unwrap(pre[:, 2], vel[:, 2], self.times,
+                            float(start[f"{b}.theta"].iloc[0]), float(start[f"{b}.omega"].iloc[0]), t_start)
+            values = (pre[:, 0], pre[:, 1], theta, vel[:, 0], vel[:, 1], vel[:, 2], acc[:, 0], acc[:, 1], acc[:, 2])
+            columns.update({f"{b}.{q}": v for q, v in zip(MOTION_QUANTITIES, values)})
+        for key in reactions[0]:
+            columns[key] = np.array([r[key] for r in reactions])
+        frame = pd.DataFrame(columns)
+        frame["health.gap"] = joint_gaps(self.mech, frame)
+        return frame
+
+
+def _point_velocity(s: np.ndarray, point: tuple[float, float]) -> tuple[float, float]:
+    rx, ry = rotate(s[2], point)
+    return s[3] - s[5] * ry, s[4] + s[5] * rx
+
+
+def _unwrap(wrapped: np.ndarray, omega: np.ndarray, t: np.ndarray, theta0: float, omega0: float,
+            t0: float) -> np.ndarray:
+    """Continuous angles anchored at the reference start: each sample takes
+    the 2π branch nearest the angle predicted from the previous one with the
+    mean rate (robust however far a body turns between samples)."""
+    out = np.empty_like(wrapped)
+    prev, prev_w, prev_t = theta0, omega0, t0
+    for k, (a, w) in enumerate(zip(wrapped, omega)):
+        guess = prev + 0.5 * (prev_w + w) * (t[k] - prev_t)
+        out[k] = a + 2 * np.pi * np.round((guess - a) / (2 * np.pi))
+        prev, prev_w, prev_t = out[k], w, t[k]
+    return out
+
+
+def joint_gaps(mechanism: Mechanism, frame: pd.DataFrame) -> np.ndarray:
+    """Largest distance between the two sides of any joint, per sample (m):
+    the pin separation of a revolute joint, the offset of point_j from the
+    guide line of a prismatic joint."""
+    gaps = []
+    for joint in mechanism.joints:
+        ends = []
+        for body, point in ((joint.body_i, joint.point_i), (joint.body_j, joint.point_j)):
+            if body == GROUND:
+                ends.append((np.full(len(frame), point[0]), np.full(len(frame), point[1])))
+                continue
+            th = frame[f"{body}.theta"].to_numpy()
+            rx, ry = rotate(th, point)
+            ends.append((frame[f"{body}.x"].to_numpy() + rx, frame[f"{body}.y"].to_numpy() + ry))
+        dx, dy = ends[1][0] - ends[0][0], ends[1][1] - ends[0][1]
+        if joint.kind == "revolute":
+            gaps.append(np.hypot(dx, dy))
+        else:
+            th_i = 0.0 if joint.body_i == GROUND else frame[f"{joint.body_i}.theta"].to_numpy()
+            ux, uy = rotate(th_i, joint.axis)
+            gaps.append(np.abs(ux * dy - uy * dx))
+    return np.max(gaps, axis=0)

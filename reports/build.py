@@ -1,0 +1,182 @@
+"""Write a complete report folder: index.html, discrepancies.csv and
+summary.md. Everything is written to a temporary sibling folder and moved
+into place at the end, so an interrupted run leaves no half-written report.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import platform
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+from jinja2 import Environment, FileSystemLoader, select_autoescape
+
+import mechval
+from mechval.linkages import build_mechanism
+from mechval.runner import Outcome
+from mechval.scenario import Scenario
+from mechval.signals import Signals
+
+from . import plots
+
+TEMPLATES = Path(__file__).resolve().parent / "templates"
+RECORD_COLUMNS = ["engine", "setting", "signal", "max_error", "t_max", "rms_error", "relative_error", "bound",
+                  "ratio", "verdict", "missing", "reason"]
+TEXT_COLUMNS = {"engine", "setting", "signal", "verdict", "reason"}
+
+
+@dataclass(frozen=True)
+class Section:
+    """An extra report section (stability, cost …) rendered by its owner."""
+
+    anchor: str
+    title: str
+    html: str
+
+
+def provenance() -> dict[str, str]:
+    """Where the results came from: project commit, machine, date, Python."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(mechval.__file__).resolve().parent, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, cwd=Path(mechval.__file__).resolve().parent, timeout=10).stdout.strip()
+        commit = (commit + ("+local changes" if dirty else "")) or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        commit = "unknown"
+    return {
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"),
+        "mechval": mechval.__version__,
+        "commit": commit,
+        "machine": f"{platform.node()} · {platform.platform()} · {os.cpu_count()} cores",
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "pandas": pd.__version__,
+    }
+
+
+def _fmt(value) -> str:
+    if isinstance(value, float):
+        return "" if np.isnan(value) else f"{value:.3g}"
+    return "" if value is None else str(value)
+
+
+def _cell(records: pd.DataFrame) -> dict:
+    if records.empty:
+        return dict(text="—", css="missing", title="not run")
+    run_failed = records["signal"].eq("(run)").any()
+    if run_failed:
+        reason = records["reason"].iloc[0]
+        return dict(text="run failed", css="bad", title=reason)
+    ratios = records["ratio"].replace([np.inf], 1e300).fillna(0.0)
+    worst = records.loc[ratios.idxmax()]
+    failed = (records["verdict"] == "fail").any()
+    if failed and not np.isfinite(worst["ratio"]):
+        return dict(text="NaN/inf", css="bad", title=f"{worst['signal']}: {worst['reason']}")
+    ratio = float(worst["ratio"])
+    css = "bad" if failed else ("ok1" if ratio <= 0.1 else "ok2" if ratio <= 0.5 else "ok3")
+    return dict(text=f"{ratio:.3g}", css=css,
+                title=f"worst: {worst['signal']} (max error {worst['max_error']:.3g} at t = {worst['t_max']:.4g} s)")
+
+
+def summary_matrix(records: pd.DataFrame, scenarios: Sequence[Scenario]) -> dict:
+    labels = list(dict.fromkeys(_label(e, s) for e, s in zip(records["engine"], records["setting"])))
+    rows = []
+    for scenario in scenarios:
+        mine = records[records["scenario"] == scenario.name]
+        cells = [_cell(mine[[_label(e, s) == label for e, s in zip(mine["engine"], mine["setting"])]])
+                 for label in labels]
+        rows.append(dict(scenario=scenario.name, anchor=_anchor(scenario.name), cells=cells))
+    return dict(columns=labels, rows=rows)
+
+
+def _label(engine: str, setting: str) -> str:
+    return engine if setting == "default" else f"{engine} [{setting}]"
+
+
+def _anchor(name: str) -> str:
+    return "s-" + "".join(c if c.isalnum() else "-" for c in name)
+
+
+def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta: dict) -> str:
+    matrix = summary_matrix(records, scenarios)
+    lines = [f"# mechval discrepancy summary ({meta['date']}, commit {meta['commit']})", "",
+             "Worst ratio error / bound per scenario × engine (≤ 1 passes).", "",
+             "| scenario | " + " | ".join(matrix["columns"]) + " |",
+             "|---" * (len(matrix["columns"]) + 1) + "|"]
+    for row in matrix["rows"]:
+        cells = [c["text"] + (" ✗" if c["css"] == "bad" else "") for c in row["cells"]]
+        lines.append(f"| {row['scenario']} | " + " | ".join(cells) + " |")
+    failures = records[records["verdict"] == "fail"]
+    if not failures.empty:
+        lines += ["", "## Out of tolerance", "", "| scenario | engine | setting | signal | max error | ratio | reason |",
+                  "|---|---|---|---|---|---|---|"]
+        for _, r in failures.iterrows():
+            lines.append(f"| {r['scenario']} | {r['engine']} | {r['setting']} | {r['signal']} | "
+                         f"{_fmt(r['max_error'])} | {_fmt(r['ratio'])} | {r['reason'] or ''} |")
+    return "\n".join(lines) + "\n"
+
+
+def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Outcome],
+                      records: pd.DataFrame) -> dict:
+    results = {_label(o.task.engine, o.task.setting): o.signals for o in outcomes if o.signals is not None}
+    mine = records[records["scenario"] == scenario.name]
+    bounds = {label: {r["signal"]: r["bound"] for _, r in mine[[_label(e, s) == label for e, s in
+                                                                  zip(mine["engine"], mine["setting"])]].iterrows()}
+              for label in results}
+    return dict(
+        name=scenario.name, anchor=_anchor(scenario.name), mechanism=scenario.mechanism,
+        description=scenario.description, tolerance=dict(scenario.tolerance.bounds),
+        drawing=plots.mechanism_drawing(build_mechanism(scenario), scenario.time.end),
+        overlays=plots.signal_overlays(reference, results),
+        errors=plots.error_plots(reference, results, bounds),
+        records=[{c: _fmt(r[c]) for c in RECORD_COLUMNS} for _, r in mine.iterrows()],
+    )
+
+
+def _runs(outcomes: Iterable[Outcome]) -> list[dict]:
+    runs = []
+    for o in outcomes:
+        s = o.signals
+        details = o.error if s is None else json.dumps(dict(s.settings), default=str, sort_keys=True)
+        runs.append(dict(scenario=o.task.scenario.name, engine=o.task.engine, setting=o.task.setting,
+                         version=s.version if s else "", wall=f"{o.wall_time:.3g}" if s else "", details=details))
+    return runs
+
+
+def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str, Signals],
+                 outcomes: list[Outcome], records: pd.DataFrame,
+                 extra_sections: Sequence[Section] = ()) -> Path:
+    """Render the report into `out` (which must not exist yet)."""
+    out = Path(out)
+    if out.exists():
+        raise FileExistsError(f"{out} exists; choose another --out or remove it")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    meta = provenance()
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        env = Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html", "j2"]))
+        sections = [_scenario_section(s, references[s.name], [o for o in outcomes if o.task.scenario.name == s.name],
+                                      records) for s in scenarios]
+        html = env.get_template("report.html.j2").render(
+            meta=meta, matrix=summary_matrix(records, scenarios), scenarios=sections, runs=_runs(outcomes),
+            overall_pass=not (records["verdict"] == "fail").any(),
+            failures=int(records[records["verdict"] == "fail"].groupby(["scenario", "engine", "setting"]).ngroups),
+            record_columns=RECORD_COLUMNS, text_columns=TEXT_COLUMNS, extra_sections=extra_sections)
+        (tmp / "index.html").write_text(html, encoding="utf-8")
+        records.to_csv(tmp / "discrepancies.csv", index=False, float_format="%.17g")
+        (tmp / "summary.md").write_text(summary_markdown(records, scenarios, meta), encoding="utf-8")
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out

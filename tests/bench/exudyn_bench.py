@@ -1,0 +1,70 @@
+"""Benchmark: the Exudyn adapter at its default settings on every built-in
+scenario — wall time per simulated second, and the adapter's overhead as
+the ratio of a whole `simulate` (settings, model building, solve, reading
+sensors, conversion) to the bare solver call on the same model and settings.
+
+    .venv/bin/python tests/bench/exudyn_bench.py [--repeats N] [SCENARIO ...]
+
+Prints the figures; it asserts nothing about time (a benchmark, not a test).
+Each figure is the best of N runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from mechval.engines.exudyn import SOLVERS, ExudynAdapter, prepare
+from mechval.linkages import build_mechanism
+from mechval.scenarios import builtin_names, load
+
+
+def best_of(repeats: int, fn) -> float:
+    """Smallest wall time of `fn()` over `repeats` calls (s)."""
+    times = []
+    for _ in range(repeats):
+        times.append(fn())
+    return min(times)
+
+
+def whole_run(adapter: ExudynAdapter, scenario) -> float:
+    start = time.perf_counter()
+    adapter.simulate(scenario)
+    return time.perf_counter() - start
+
+
+def bare_solve(adapter: ExudynAdapter, scenario) -> float:
+    """Only the `SolveDynamic` call, on the model and settings the adapter
+    would use (Exudyn's console output left on; it prints nothing at
+    verboseMode 0)."""
+    mechanism = build_mechanism(scenario)
+    settings = adapter.settings_for(scenario, mechanism)
+    model, simulation, _ = prepare(mechanism, scenario.time.t, settings)
+    start = time.perf_counter()
+    model.mbs.SolveDynamic(simulation, solverType=SOLVERS[settings["solver"]])
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenarios", nargs="*", default=builtin_names())
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+
+    adapter = ExudynAdapter()
+    print(f"exudyn {ExudynAdapter.version()}, default settings, best of {args.repeats}")
+    print(f"{'scenario':22s} {'sim s':>6s} {'steps':>6s} {'run s':>7s} {'s per sim s':>11s} "
+          f"{'µs/step':>8s} {'bare s':>7s} {'overhead':>8s}")
+    for name in args.scenarios:
+        scenario = load(name)
+        result = adapter.simulate(scenario)
+        steps = result.settings["steps"]
+        run = best_of(args.repeats, lambda: whole_run(adapter, scenario))
+        bare = best_of(args.repeats, lambda: bare_solve(adapter, scenario))
+        simulated = scenario.time.end
+        print(f"{name:22s} {simulated:6.2f} {steps:6d} {run:7.3f} {run / simulated:11.3f} "
+              f"{1e6 * bare / steps:8.1f} {bare:7.3f} {run / bare:8.2f}")
+
+
+if __name__ == "__main__":
+    main()

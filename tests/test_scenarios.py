@@ -1,0 +1,109 @@
+"""Scenario files: every built-in loads; bad input is refused with the
+file, the key and the reason."""
+
+from __future__ import annotations
+
+import pytest
+
+from conftest import BUILTIN
+from mechval.scenario import ScenarioError
+from mechval.scenarios import load, parse
+from scenario_data import fourbar, slider_crank
+
+
+@pytest.mark.parametrize("name", BUILTIN)
+def test_builtin_loads(name):
+    scenario = load(name)
+    assert scenario.name == name
+    assert scenario.time.t[-1] == scenario.time.end
+
+
+def test_defaults_for_omitted_tables():
+    scenario = parse(fourbar(effects=None), "defaults")
+    assert scenario.gravity is None and scenario.damping == {}
+    assert scenario.tolerance["angle"] == 1e-3 and scenario.tolerance["force"] == 1e-2
+    rocker = scenario.mass["rocker"]
+    assert rocker.com == pytest.approx(0.25) and rocker.izz == pytest.approx(25.0 * 0.5**2 / 12)
+
+
+def test_engine_tolerance_override():
+    scenario = parse(fourbar(engines={"mujoco": {"timestep": 1e-4, "tolerance": {"force": 2e-2}}}), "x")
+    assert scenario.tolerance_for("mujoco")["force"] == 2e-2
+    assert scenario.tolerance_for("exudyn")["force"] == 1e-2
+    assert scenario.settings_for("mujoco") == {"timestep": 1e-4}
+
+
+BAD = [
+    (fourbar(geometry={"coupler": 0.2}), "geometry", "cannot close at t = 1.1439 s (θ2 = 1.79815 rad)"),
+    (fourbar(geometry={"crank": 0.6}), "geometry.crank", "crank equals ground"),
+    (slider_crank(geometry={"offset": 0.35}), "geometry", "cannot close"),
+    (fourbar(geometry={"rocker": -0.5}), "geometry.rocker", "must be positive"),
+    (fourbar(geometry={"rocker": 0}), "geometry.rocker", "must be positive"),
+    (fourbar(mass={"crank": 0.0}), "mass.crank", "must be positive"),
+    (fourbar(mass={"coupler": {"mass": 2.0, "izz": -1.0}}), "mass.coupler.izz", "must be positive"),
+    (fourbar(mass={"coupler": {"izz": 1.0}}), "mass.coupler.mass", "missing value"),
+    (fourbar(mass={"coupler": None}), "mass.coupler", "missing value"),
+    (slider_crank(mass={"slider": {"mass": 1.0, "com": 0.1}}), "mass.slider.com", "unknown key"),
+    (fourbar(time={"samples": 1}), "time.samples", "at least 2"),
+    (fourbar(time={"samples": 10.5}), "time.samples", "whole number"),
+    (fourbar(time={"end": -1.0}), "time.end", "must be positive"),
+    (fourbar(colour="red"), "colour", "unknown key"),
+    (fourbar(geometry={"lenght": 0.3}), "geometry.lenght", "unknown key"),
+    (fourbar(effects={"damping": {"C": 1.0}}), "effects.damping.C", "unknown key"),
+    (fourbar(effects={"damping": {"A": -1.0}}), "effects.damping.A", "must not be negative"),
+    (fourbar(effects={"gravity": [0.0, -9.81, 0.0]}), "effects.gravity", "two finite numbers"),
+    (fourbar(effects={"gravity": "down"}), "effects.gravity", "two finite numbers"),
+    (fourbar(drive={"omega0": "fast"}), "drive.omega0", "expected a number"),
+    (fourbar(drive={"omega0": True}), "drive.omega0", "expected a number"),
+    (fourbar(drive={"omega0": None}), "drive.omega0", "missing value"),
+    (fourbar(drive=None), "drive", "missing table"),
+    (fourbar(time=None), "time", "missing table"),
+    (fourbar(geometry={"branch": "upside"}), "geometry.branch", "must be one of"),
+    (fourbar(mechanism="sixbar"), "mechanism", "must be one of"),
+    (fourbar(name=None), "name", "missing value"),
+    (fourbar(tolerance={"force": 0.0}), "tolerance.force", "must be positive"),
+    (fourbar(tolerance={"speed": 1.0}), "tolerance.speed", "unknown key"),
+    (fourbar(engines={"bullet": {}}), "engines.bullet", "unknown key"),
+    (fourbar(engines={"mujoco": {"tolerance": {"force": "big"}}}), "engines.mujoco.tolerance.force",
+     "expected a number"),
+    # The crank of this double-crank turns fully; from a triple-rocker's
+    # reachable range it cannot: refused at the first instant it leaves it.
+    (fourbar(geometry={"ground": 0.6, "crank": 0.5, "coupler": 0.3, "rocker": 0.45}), "geometry",
+     "cannot close at t ="),
+]
+
+
+@pytest.mark.parametrize("data,key,reason", BAD, ids=[b[1] + ":" + b[2] for b in BAD])
+def test_bad_input_refused(data, key, reason):
+    with pytest.raises(ScenarioError) as info:
+        parse(data, "bad.toml")
+    assert info.value.source == "bad.toml"
+    assert info.value.key == key
+    assert reason in info.value.reason
+
+
+def test_closure_message_names_time_and_lengths():
+    with pytest.raises(ScenarioError) as info:
+        parse(fourbar(geometry={"coupler": 0.3, "rocker": 0.45}, drive={"phi0": 0.0, "omega0": 1.0, "alpha": 0.0}),
+              "f.toml")
+    message = str(info.value)
+    assert message.startswith("f.toml: geometry: the loop cannot close at t = ")
+    assert "coupler + rocker = 0.75 m" in message and "ground 0.6, crank 0.25" in message
+
+
+def test_closure_checked_between_samples():
+    """A violation that lies between two samples is still found: crank angle
+    π is reached only between the samples t = 0 and t = 2 s."""
+    data = fourbar(geometry={"ground": 0.6, "crank": 0.25, "coupler": 0.3, "rocker": 0.45},
+                   drive={"phi0": -1.0, "omega0": 1.6, "alpha": 0.0}, time={"end": 4.0, "samples": 3})
+    with pytest.raises(ScenarioError, match="cannot close"):
+        parse(data, "between.toml")
+
+
+def test_unreadable_file(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("name = [unclosed\n")
+    with pytest.raises(ScenarioError, match="not valid TOML"):
+        load(path)
+    with pytest.raises(ScenarioError, match="no such scenario"):
+        load(tmp_path / "absent.toml")

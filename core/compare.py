@@ -16,6 +16,12 @@ The rule (reference in the expected position):
 Values an engine marks as missing (with a reason) are left out of the
 error and counted; a signal with no value at all is "missing"; NaN or inf
 without a reason fails.
+
+Run health (mechval.health) is judged in the same records, class "health":
+a loop-closure gap beyond the position tolerance or a drive error beyond
+the angle tolerance makes the positions meaningless; a power residual is
+held to the torque tolerance (it mixes the torque and the accelerations);
+any unexplained non-finite value or assembly-branch flip fails outright.
 """
 
 from __future__ import annotations
@@ -71,7 +77,42 @@ def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario:
                        ratio=max_error / bound if bound else (0.0 if max_error == 0 else np.inf))
             row["verdict"] = "pass" if row["ratio"] <= 1.0 else "fail"
         rows.append(row)
+    if result.health is not None:
+        rows += _health_rows(result.health, tolerance, dict(scenario=scenario, engine=engine, setting=setting))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+#: Health column → (tolerance class whose bound applies, or None for "must be 0").
+HEALTH_BOUNDS = {"nonfinite": None, "gap": "position", "drive_error": "angle", "assembly_flip": None,
+                 "power_residual": "torque"}
+
+
+def _health_rows(health: pd.DataFrame, tolerance: Tolerance, ids: dict) -> list[dict]:
+    rows = []
+    t = health["t"].to_numpy()
+    for name, cls in HEALTH_BOUNDS.items():
+        row = dict(ids, signal=f"health.{name}", **{"class": "health"}, peak=np.nan, rms_error=np.nan,
+                   relative_error=np.nan, missing=0, reason="")
+        bound = tolerance[cls] if cls else 0.0
+        row.update(tolerance=bound, bound=bound)
+        if name not in health:
+            rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
+                             reason="not available for this mechanism"))
+            continue
+        values = health[name].to_numpy(dtype=float)
+        if not np.isfinite(values).any():
+            rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
+                             reason="the engine does not report the signals it needs"))
+            continue
+        worst = int(np.nanargmax(values))
+        value = float(values[worst])
+        ratio = value / bound if bound else (0.0 if value == 0 else np.inf)
+        rows.append(dict(row, max_error=value, t_max=float(t[worst]), ratio=ratio,
+                         rms_error=float(np.sqrt(np.nanmean(values**2))),
+                         missing=int((~np.isfinite(values)).sum()),
+                         verdict="pass" if ratio <= 1.0 else "fail",
+                         reason="" if ratio <= 1.0 or cls else f"{int(np.nansum(values))} sample(s)"))
+    return rows
 
 
 def passed(records: pd.DataFrame) -> bool:

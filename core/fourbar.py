@@ -169,4 +169,12 @@ def build_mechanism(scenario: Scenario) -> Mechanism:
         drive=Drive("O2", law), gravity=tuple(scenario.gravity or (0.0, 0.0)),
         motion=lambda t: body_motion(g, law, np.asarray(t, dtype=float)),
         signal_map=SIGNAL_MAP,
+        assembly=lambda raw: assembly_side(g, raw),
     )
+
+
+def assembly_side(g: FourBarGeometry, raw) -> np.ndarray:
+    """(O4 − A) × (B − A) from the coupler's pose: > 0 on the open branch
+    (B left of A→O4), < 0 on the crossed one."""
+    ax, ay, th3 = (np.asarray(raw[f"coupler.{q}"]) for q in ("x", "y", "theta"))
+    return (g.ground - ax) * np.sin(th3) - (-ay) * np.cos(th3)

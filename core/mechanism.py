@@ -93,6 +93,10 @@ class Mechanism:
     motion: Callable[[np.ndarray], pd.DataFrame] = field(repr=False, compare=False)
     #: Canonical signal name -> raw column ("F32x" -> "A.Fx").
     signal_map: Mapping[str, str] = field(repr=False, compare=False)
+    #: Assembly-branch indicator from raw motion columns: its sign is
+    #: constant on one branch and flips only when the loop changes branch.
+    assembly: Callable[[Mapping[str, np.ndarray]], np.ndarray] | None = field(
+        default=None, repr=False, compare=False)
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)

@@ -54,6 +54,8 @@ class Signals:
     version: str = ""
     settings: Mapping[str, Any] = field(default_factory=dict)
     missing: Mapping[str, str] = field(default_factory=dict)
+    #: Per-sample run health (mechval.health.HEALTH_COLUMNS); engines only.
+    health: pd.DataFrame | None = None
 
     @property
     def t(self) -> np.ndarray:
@@ -78,6 +80,7 @@ def canonical_signals(
     version: str = "",
     settings: Mapping[str, Any] | None = None,
     missing: Mapping[str, str] | None = None,
+    health: pd.DataFrame | None = None,
 ) -> Signals:
     """Map raw columns ("crank.theta", "A.Fx", ...) to canonical signals.
 
@@ -96,7 +99,7 @@ def canonical_signals(
             reasons[name] = missing[raw_name]
         elif raw_name not in raw:
             reasons[name] = f"{source} does not report {raw_name}"
-    return Signals(pd.DataFrame(columns), source, version, dict(settings or {}), reasons)
+    return Signals(pd.DataFrame(columns), source, version, dict(settings or {}), reasons, health)
 
 
 def write_atomically(path: str | os.PathLike, write) -> None:

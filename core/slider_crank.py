@@ -136,4 +136,11 @@ def build_mechanism(scenario: Scenario) -> Mechanism:
         drive=Drive("O2", law), gravity=tuple(scenario.gravity or (0.0, 0.0)),
         motion=lambda t: body_motion(g, law, np.asarray(t, dtype=float)),
         signal_map=SIGNAL_MAP,
+        assembly=assembly_side,
     )
+
+
+def assembly_side(raw) -> np.ndarray:
+    """x of B relative to the crank pin A (the rod's x extent): > 0 on the
+    right branch, < 0 on the left one."""
+    return np.cos(np.asarray(raw["conrod.theta"]))

@@ -17,6 +17,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
+from mechval.health import health
 from mechval.linkages import build_mechanism
 from mechval.mechanism import Mechanism
 from mechval.scenario import Scenario, ScenarioError
@@ -88,7 +89,7 @@ class EngineAdapter(ABC):
         settings = self.settings_for(scenario, mechanism, overrides)
         raw = self.run(mechanism, scenario.time.t, settings)
         return canonical_signals(mechanism, raw.frame, self.name, self.version(),
-                                 {**settings, **raw.info}, raw.missing)
+                                 {**settings, **raw.info}, raw.missing, health(mechanism, raw.frame, raw.missing))
 
 
 def step_rate(mechanism: Mechanism, times: np.ndarray, dense: int = 20001) -> float:

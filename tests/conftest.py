@@ -34,3 +34,39 @@ def engine_or_skip(name: str):
 @pytest.fixture(params=ENGINE_NAMES)
 def engine(request):
     return engine_or_skip(request.param)
+
+
+# --- pytest --mechval-report DIR: the same report, written from a test session.
+
+COMPARISONS: list = []      # (Outcome, records) of every comparison test that ran
+
+
+def pytest_addoption(parser):
+    parser.addoption("--mechval-report", metavar="DIR", default=None,
+                     help="write the discrepancy report of the session's comparison tests to DIR")
+
+
+@pytest.fixture
+def record_comparison():
+    """Tests call record_comparison(scenario, engine, signals, records,
+    wall_time) so that --mechval-report can show their results."""
+    from mechval.runner import Outcome, Task
+
+    def record(scenario, engine, signals, records, wall_time=0.0, setting="default"):
+        COMPARISONS.append((Outcome(Task(scenario, engine, setting), signals, wall_time=wall_time), records))
+    return record
+
+
+def pytest_sessionfinish(session, exitstatus):
+    out = session.config.getoption("--mechval-report", default=None)
+    if not out or not COMPARISONS:
+        return
+    import pandas as pd
+    from pathlib import Path
+    from mechval.reports.build import write_report
+    outcomes = [o for o, _ in COMPARISONS]
+    scenarios = list({o.task.scenario.name: o.task.scenario for o in outcomes}.values())
+    references = {s.name: builtin_reference(s.name) if s.source and s.source.stem == s.name
+                  else simulate_reference(s) for s in scenarios}
+    path = write_report(Path(out), scenarios, references, outcomes, pd.concat([r for _, r in COMPARISONS]))
+    session.config.get_terminal_writer().line(f"mechval report: {path / 'index.html'}")

@@ -1,8 +1,10 @@
 """Engineering outputs of a linkage analysis: Grashof condition and linkage
 type, transmission angle over the run, toggle / dead-centre instants inside
 the run, and the distance to singularity (condition number of the velocity
-Jacobian). References: Norton, *Design of Machinery*, §2.12 (Grashof),
-§4.10 (transmission angle), §4.12 (toggle positions).
+Jacobian), and for the slider-crank inversions with a turning slide the
+quick-return time ratio (closed form and measured). References: Norton,
+*Design of Machinery*, §2.12 (Grashof), §4.10 (transmission angle), §4.12
+(toggle positions).
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ class Analysis:
     toggles: tuple[tuple[float, str], ...]  # (t, what) inside the run
     jacobian_cond_max: float
     jacobian_cond_t: float
+    quick_return: float | None = None           # forward/return stroke time, closed form (constant ω2)
+    quick_return_measured: float | None = None  # the same from the reference motion of the run
 
 
 def _sign_changes(t: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -43,6 +47,21 @@ def _cond2(m11, m12, m21, m22) -> np.ndarray:
     s_max, s_min2 = np.sqrt((frob2 + root) / 2), (frob2 - root) / 2
     with np.errstate(divide="ignore"):
         return np.where(det > 0, s_max**2 / np.where(det > 0, det, 1.0), np.inf)
+
+
+def measured_stroke_ratio(t: np.ndarray, omega_out: np.ndarray, omega2: np.ndarray) -> float | None:
+    """Mean forward over mean return stroke time of a rocking link: strokes
+    run between sign changes of its rate; a forward stroke turns it the way
+    the crank turns. None without a complete stroke of each kind."""
+    ends = _sign_changes(t, omega_out)
+    if len(ends) < 3:
+        return None
+    mid = (ends[:-1] + ends[1:]) / 2
+    forward = np.sign(np.interp(mid, t, omega_out)) == np.sign(np.interp(mid, t, omega2))
+    if forward.all() or not forward.any():
+        return None
+    durations = np.diff(ends)
+    return float(durations[forward].mean() / durations[~forward].mean())
 
 
 def fourbar_type(ground: float, crank: float, coupler: float, rocker: float) -> tuple[str, str]:
@@ -67,6 +86,7 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
     k = module.kinematics(module.Geometry(**geometry), scenario.drive, t)
     th2, th3 = k["theta2"], k["theta3"]
     toggles = []
+    quick_return = measured = None
     if scenario.mechanism == "fourbar":
         th4 = k["theta4"]
         grashof, kind = fourbar_type(geometry["ground"], geometry["crank"], geometry["coupler"], geometry["rocker"])
@@ -76,7 +96,7 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
         cond = _cond2(-b * np.sin(th3), c * np.sin(th4), b * np.cos(th3), -c * np.cos(th4))
         toggles += [(float(x), "toggle: crank and coupler collinear (rocker at a limit, ω4 = 0)")
                     for x in _sign_changes(t, np.sin(th3 - th2))]
-    else:
+    elif scenario.mechanism == "slider_crank":
         r2, r3, e = geometry["crank"], geometry["conrod"], geometry["offset"]
         full = r3 > r2 + abs(e)
         grashof = "crank turns fully (conrod > crank + |offset|)" if full else \
@@ -87,12 +107,32 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
         cond = _cond2(-np.sin(th3), -1.0 + 0 * th3, np.cos(th3), 0 * th3)
         toggles += [(float(x), "dead centre: crank and conrod collinear (slider at a limit, v4 = 0)")
                     for x in _sign_changes(t, np.sin(th3 - th2))]
+    else:   # slotted_lever, inverted_slider: link 3 slides along link 4, which pivots at O4
+        a, d, c = geometry["crank"], geometry["ground"], geometry.get("offset", 0.0)
+        grashof = "crank turns fully (|ground − crank| > offset)" if abs(a - d) > c else \
+            "crank cannot turn fully (|ground − crank| ≤ offset)"
+        kind = {("slotted_lever", True): "crank-slotted lever (quick-return)",
+                ("slotted_lever", False): "Whitworth quick-return (the lever turns fully)",
+                ("inverted_slider", True): "inverted slider-crank, rocking rod",
+                ("inverted_slider", False): "inverted slider-crank, rotating rod"}[scenario.mechanism, a < d]
+        # The pin force is normal to the slide, the pin moves normal to the
+        # crank: μ = 90° with the crank along the slide, 0 at a stroke end.
+        mu = np.arcsin(np.abs(np.cos(th2 - th3)))
+        # Jacobian in (ρ·ω3, ḃ), ρ = |A − O4|: unit columns j·(A − O4)/ρ, e3.
+        rx, ry = a * np.cos(th2) - d, a * np.sin(th2)
+        rho = np.hypot(rx, ry)
+        cond = _cond2(-ry / rho, np.cos(th3), rx / rho, np.sin(th3))
+        toggles += [(float(x), "stroke end: crank perpendicular to the slide (link 3 at a limit, ω3 = 0)")
+                    for x in _sign_changes(t, np.cos(th2 - th3))]
+        quick_return = module.quick_return_ratio(module.Geometry(**geometry))
+        measured = measured_stroke_ratio(t, k["omega3"], k["omega2"])
     worst = int(np.argmax(cond))
     return Analysis(
         scenario=scenario.name, mechanism=scenario.mechanism, grashof=grashof, linkage_type=kind,
         transmission_min=float(mu.min()), transmission_max=float(mu.max()),
         transmission_t_min=float(t[int(np.argmin(mu))]), toggles=tuple(sorted(toggles)),
         jacobian_cond_max=float(cond[worst]), jacobian_cond_t=float(t[worst]),
+        quick_return=quick_return, quick_return_measured=measured,
     )
 
 
@@ -106,6 +146,10 @@ def format_analysis(a: Analysis, max_toggles: int = 12) -> str:
         f"Jacobian cond. max  {a.jacobian_cond_max:.4g} at t = {a.jacobian_cond_t:.4g} s",
         f"toggle instants     {len(a.toggles)}",
     ]
+    if a.quick_return is not None or a.quick_return_measured is not None:
+        shown = lambda x: "n/a" if x is None else f"{x:.6g}"
+        lines.insert(4, f"quick-return ratio  {shown(a.quick_return)} closed form (constant crank speed), "
+                        f"{shown(a.quick_return_measured)} measured (forward / return stroke time)")
     lines += [f"  t = {t:10.5f} s  {what}" for t, what in a.toggles[:max_toggles]]
     if len(a.toggles) > max_toggles:
         lines.append(f"  … {len(a.toggles) - max_toggles} more")

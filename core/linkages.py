@@ -6,11 +6,12 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from . import fourbar, slider_crank
+from . import fourbar, inverted_slider, slider_crank, slotted_lever
 from .mechanism import Mechanism
 from .scenario import Scenario
 
-LINKAGES: dict[str, ModuleType] = {"fourbar": fourbar, "slider_crank": slider_crank}
+LINKAGES: dict[str, ModuleType] = {"fourbar": fourbar, "slider_crank": slider_crank,
+                                   "slotted_lever": slotted_lever, "inverted_slider": inverted_slider}
 
 
 def linkage(kind: str) -> ModuleType:

@@ -18,7 +18,7 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from .mechanism import Mechanism
+from .mechanism import GROUND, Mechanism, point_motion, rotate
 
 COMMON_SIGNALS = (
     "t", "theta2", "omega2", "alpha2", "theta3", "omega3", "alpha3",
@@ -27,6 +27,11 @@ COMMON_SIGNALS = (
 MECHANISM_SIGNALS = {
     "fourbar": ("theta4", "omega4", "alpha4", "F14x", "F14y"),
     "slider_crank": ("x4", "v4", "a4", "F14y"),
+    # Inversions with a slide between moving links 3 and 4: s34 is link 3's
+    # position along link 4's slide axis, N43 and M43 the slide's normal
+    # force (along ẑ × axis) and couple on link 3.
+    "slotted_lever": ("theta4", "omega4", "alpha4", "s34", "v34", "a34", "F14x", "F14y", "N43", "M43"),
+    "inverted_slider": ("theta4", "omega4", "alpha4", "s34", "v34", "a34", "F14x", "F14y", "N43", "M43"),
 }
 
 #: Tolerance class of each signal (keys of a scenario's [tolerance] table).
@@ -37,6 +42,7 @@ SIGNAL_CLASS = {
     "x4": "position", "v4": "velocity", "a4": "acceleration",
     **{f"F{ij}{c}": "force" for ij in ("12", "32", "43", "14") for c in "xy"},
     "T12": "torque",
+    "s34": "position", "v34": "velocity", "a34": "acceleration", "N43": "force", "M43": "torque",
 }
 
 
@@ -88,7 +94,7 @@ def canonical_signals(
     carried over to the canonical names. A NaN without a stated reason is
     kept and reported as such, so a blow-up is never mistaken for a gap.
     """
-    missing = dict(missing or {})
+    raw, missing = with_slide_columns(mechanism, raw, dict(missing or {}))
     columns = {"t": raw["t"].to_numpy()}
     reasons = {}
     for name in signal_names(mechanism.kind)[1:]:
@@ -100,6 +106,41 @@ def canonical_signals(
         elif raw_name not in raw:
             reasons[name] = f"{source} does not report {raw_name}"
     return Signals(pd.DataFrame(columns), source, version, dict(settings or {}), reasons, health)
+
+
+def with_slide_columns(mechanism: Mechanism, raw: pd.DataFrame,
+                       missing: dict[str, str]) -> tuple[pd.DataFrame, dict[str, str]]:
+    """Add the slide columns J.s, J.v, J.a, J.N of every prismatic joint J
+    the signal map asks for, derived from the raw body motion and reaction.
+
+    With u the axis in world axes (turning with body_i at ω_i, α_i),
+    n = ẑ × u and d = P_j − P_i (joint points): s = d·u (m), ṡ = ḋ·u +
+    ω_i·d·n, s̈ = d̈·u + 2·ω_i·ḋ·n + d·(α_i·n − ω_i²·u), and N = F·n, the
+    reaction's normal component (N; its reason for missing values is Fx's).
+    """
+    wanted = set(mechanism.signal_map.values())
+    extra = {}
+    for j in mechanism.joints:
+        if j.kind != "prismatic" or f"{j.name}.s" not in wanted:
+            continue
+        Pi, Pj = point_motion(raw, j.body_i, j.point_i), point_motion(raw, j.body_j, j.point_j)
+        on_ground = j.body_i == GROUND
+        col = lambda q: 0.0 if on_ground else raw[f"{j.body_i}.{q}"].to_numpy()
+        ux, uy = rotate(np.asarray(col("theta"), dtype=float), j.axis)
+        nx, ny = -uy, ux
+        w, al = col("omega"), col("alpha")
+        dx, dy = Pj["x"] - Pi["x"], Pj["y"] - Pi["y"]
+        dvx, dvy = Pj["vx"] - Pi["vx"], Pj["vy"] - Pi["vy"]
+        dax, day = Pj["ax"] - Pi["ax"], Pj["ay"] - Pi["ay"]
+        extra[f"{j.name}.s"] = dx * ux + dy * uy
+        extra[f"{j.name}.v"] = dvx * ux + dvy * uy + w * (dx * nx + dy * ny)
+        extra[f"{j.name}.a"] = (dax * ux + day * uy + 2 * w * (dvx * nx + dvy * ny)
+                                + dx * (al * nx - w * w * ux) + dy * (al * ny - w * w * uy))
+        if f"{j.name}.Fx" in raw and f"{j.name}.Fy" in raw:
+            extra[f"{j.name}.N"] = raw[f"{j.name}.Fx"].to_numpy() * nx + raw[f"{j.name}.Fy"].to_numpy() * ny
+            if f"{j.name}.Fx" in missing:
+                missing = {**missing, f"{j.name}.N": missing[f"{j.name}.Fx"]}
+    return (raw.assign(**extra) if extra else raw), missing
 
 
 def write_atomically(path: str | os.PathLike, write) -> None:

@@ -15,13 +15,16 @@ rotation coordinates, or on the relative translation along a guide, which
 turns with body_i: `MarkerBodiesRelativeTranslationCoordinate`).
 
 Every reaction and every node state is recorded by a sensor kept in memory
-(`storeInternal=True`, `writeToFile=False`); the solver settings that make
-those sensors record every step and write no file live in the adapter.
+(`storeInternal=True`, `writeToFile=False`); `simulation_settings` makes
+them record every step and keeps Exudyn from writing files or printing.
+Only this module imports the engine library, so importing the adapter
+(the registry does, to read its metadata) does not.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, Mapping
 
 import exudyn as exu
 import exudyn.itemInterface as eii
@@ -30,6 +33,8 @@ import pandas as pd
 
 from mechval.mechanism import GROUND, Body, Joint, Mechanism, point_motion, rotate
 
+#: The adapter's solver names (setting "solver") → Exudyn's solvers.
+SOLVERS = {"index2": exu.DynamicSolverType.TrapezoidalIndex2, "index3": exu.DynamicSolverType.GeneralizedAlpha}
 #: Node sensor outputs: position/rotation, their rates and accelerations.
 NODE_OUTPUTS = {
     "q": exu.OutputVariableType.Coordinates,
@@ -185,7 +190,8 @@ def _add_drive(mbs: exu.MainSystem, mechanism: Mechanism, rotation: dict[str, in
     Returns the sensor of its λ."""
     joint = mechanism.joint(mechanism.drive.joint)
     law = mechanism.drive.law
-    base = float(reference[joint.body_j][2]) - (float(reference[joint.body_i][2]) if joint.body_i != GROUND else 0.0)
+    theta_ref = {body: float(q0[2]) for body, q0 in reference.items()} | {GROUND: 0.0}
+    base = theta_ref[joint.body_j] - theta_ref[joint.body_i]
 
     # DriveLaw's φ and φ̇ in plain floats: these run at every Newton
     # iteration, and numpy on scalars took ~45 % of a run. The adapter's
@@ -204,3 +210,40 @@ def _add_drive(mbs: exu.MainSystem, mechanism: Mechanism, rotation: dict[str, in
         offsetUserFunction=offset, offsetUserFunction_t=offset_t))
     return mbs.AddSensor(eii.SensorObject(objectNumber=number, outputVariableType=exu.OutputVariableType.Force,
                                           storeInternal=True, writeToFile=False))
+
+
+def simulation_settings(settings: Mapping[str, Any], duration: float, dt: float) -> exu.SimulationSettings:
+    """Exudyn settings for a fixed-step run of `duration` from the solver's
+    time 0 that records every step in memory and writes no file and no
+    console output."""
+    s = exu.SimulationSettings()
+    ti = s.timeIntegration
+    ti.startTime, ti.endTime = 0.0, duration
+    ti.numberOfSteps = int(round(duration / dt))
+    ti.adaptiveStep = bool(settings["adaptive_step"])
+    ti.verboseMode = 0
+    ti.newton.useModifiedNewton = not settings["full_newton"]
+    ti.newton.relativeTolerance = float(settings["newton_relative_tolerance"])
+    ti.newton.absoluteTolerance = float(settings["newton_absolute_tolerance"])
+    alpha = ti.generalizedAlpha
+    alpha.computeInitialAccelerations = bool(settings["compute_initial_accelerations"])
+    alpha.resetAccelerations = False
+    alpha.spectralRadius = float(settings["spectral_radius"])
+    s.solution.file.write = False
+    # 0: record every step (the default 0.01 s silently thins the sensors).
+    s.solution.sensors.writePeriod = 0.0
+    s.show.computationTime = False
+    s.show.statistics = False
+    return s
+
+
+def solve(model: ExudynModel, simulation: exu.SimulationSettings,
+          solver: str) -> exu.MainSolverImplicitSecondOrder:
+    """Run the solver with Exudyn's console output off; raise on failure."""
+    printing = exu.config.printToConsole
+    exu.config.printToConsole = False
+    try:
+        model.mbs.SolveDynamic(simulation, solverType=SOLVERS[solver], storeSolver=True)
+    finally:
+        exu.config.printToConsole = printing
+    return model.mbs.sys["dynamicSolver"]

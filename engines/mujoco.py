@@ -31,14 +31,19 @@ at the sample instant):
 - drive.T: the joint equality's `efc_force` is the generalized force on the
   drive hinge coordinate; T = sign·efc (sign −1 if the hinge's child is
   body_i). A damper at the drive pin is a tendon, not part of this force.
+
+  The cut pin's damper acts through its tendon on the tree's hinges, which
+  moves its couple onto the path's bodies (same motion, other internal
+  couples): it is taken out of a slide joint's M (`cut_damper_couple`).
 Only in-plane force components and the z couple are reported: the
 out-of-plane reactions of a planar loop closed in 3D are statically
 indeterminate, so any engine value there is legitimate and meaningless.
 
-High accuracy (`high_accuracy`): a tenth of the default step with solref
-20 steps (the soft constraints' error falls as the square of their time
-constant; at 10 steps RK4 shows a floor near 1e-5 once dt ≲ 1e-4): on
-fourbar-seed every force and torque within ~1e-6 relative.
+High accuracy (variant "high-accuracy": refine = 10, solref_steps = 20): a
+tenth of the rule's step, the loop's solref at 20 of those steps. The soft
+constraints' error falls as the square of their time constant, but at 10
+steps RK4 shows a floor near 1e-5 once dt ≲ 1e-4. On fourbar-seed every
+force and torque is then within ~1e-6 relative (default: ~1e-5).
 """
 
 from __future__ import annotations
@@ -57,16 +62,27 @@ from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism, rotate
 from .mujoco_model import CLOCK, Topology, coordinates, mjcf, sites, topology
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+#: Data fields recorded at every sample for the read-out.
+RECORDED = ("time", "qpos", "qvel", "qacc", "xpos", "cvel", "cacc", "cfrc_int", "subtree_com", "site_xpos",
+            "xaxis", "qfrc_passive")
 
 
 class MujocoAdapter(EngineAdapter):
     name: ClassVar[str] = "mujoco"
     library: ClassVar[str] = "mujoco"
     distribution: ClassVar[str] = "mujoco"
+    #: "high-accuracy": a tenth of the rule's step, solref 20 steps
+    #: (≤ 1e-6 relative on fourbar-seed's forces, see the module docstring).
+    variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "default": {}, "high-accuracy": {"refine": 10, "solref_steps": 20.0}}
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
-        """RK4 at the shared step rule (0.01 rad per step of the fastest
-        motion, ≤ 1 ms); solref 10·dt, below which RK4 has an error floor;
+        """RK4 at the shared step rule (`timestep`: 0.01 rad per step of the
+        fastest motion, ≤ 1 ms), divided by `refine` (the step MuJoCo takes,
+        dt; 1 by default); the loop's solref 10·dt, below which RK4 has an
+        error floor; the drive's 1·dt (the drive equality has no such floor,
+        and its lag is what α2 shows: on a 150 rad/s crank 0.4 % of φ̈ at
+        10·dt, 0.02 % at 1·dt; 0.5·dt is worse again);
         solimp at MuJoCo's cap 0.9999; Newton with tolerance 0 and a few
         iterations (a non-zero tolerance stops Newton at 0 iterations with the
         heavy clock); clock mass 1e12 kg, so the drive's reaction moves the
@@ -78,8 +94,9 @@ class MujocoAdapter(EngineAdapter):
             "mode": "forward",
             "integrator": "RK4",
             "timestep": default_step(mechanism, times),
+            "refine": 1,
             "solref_steps": 10.0,
-            "drive_solref_steps": 2.0,
+            "drive_solref_steps": 1.0,
             "solref_dampratio": 1.0,
             "solimp": "0.9999 0.9999 0.001 0.5 2",
             "tolerance": 0.0,
@@ -96,13 +113,10 @@ class MujocoAdapter(EngineAdapter):
         build_time = time.perf_counter() - start
         runner = model.forward if settings["mode"] == "forward" else model.inverse
         frame, info = runner()
-        info.update(build_time_s=build_time, solref=model.solref, solimp=settings["solimp"])
+        info.update(build_time_s=build_time, step=model.dt, solimp=settings["solimp"],
+                    solref=f'{model.m.eq_solref[model.loop_eq][0]:.6g} {model.m.eq_solref[model.loop_eq][1]:.6g}',
+                    drive_solref=f'{model.m.eq_solref[model.drive_eq][0]:.6g} {model.m.eq_solref[model.drive_eq][1]:.6g}')
         return RawRun(frame, {}, info)
-
-
-def high_accuracy(defaults: Mapping[str, Any]) -> dict[str, Any]:
-    """The documented high-accuracy overrides of the default settings."""
-    return {"timestep": defaults["timestep"] / 10, "solref_steps": 20.0}
 
 
 class Model:
@@ -110,17 +124,16 @@ class Model:
 
     def __init__(self, mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]):
         self.mech, self.times, self.settings = mech, np.asarray(times, dtype=float), settings
-        dt = settings["timestep"]
+        dt = self.dt = settings["timestep"] / settings["refine"]
         interval = float(self.times[1] - self.times[0]) if len(self.times) > 1 else dt
         self.substeps = int(round(interval / dt))
         if abs(self.substeps * dt - interval) > 1e-9 * interval:
-            raise ValueError(f"mujoco: timestep {dt} does not divide the sample interval {interval}")
+            raise ValueError(f"mujoco: the step {dt} does not divide the sample interval {interval}")
         preroll = int(np.ceil(settings["preroll_timeconsts"] * settings["solref_steps"]))
         self.preroll, self.start_motion = self.start(preroll, dt)
         self.t_start = float(self.start_motion["t"].iloc[0])
         self.topo: Topology = topology(mech, self.start_motion)
-        self.solref = f'{settings["solref_steps"] * dt:.6g} {settings["solref_dampratio"]:.6g}'
-        self.xml = mjcf(mech, self.topo, settings)
+        self.xml = mjcf(mech, self.topo, settings, dt)
         self.m = mujoco.MjModel.from_xml_string(self.xml)
         self.d = mujoco.MjData(self.m)
         m = self.m
@@ -134,17 +147,17 @@ class Model:
     def start(self, preroll: int, dt: float) -> tuple[int, pd.DataFrame]:
         """The longest pre-roll (≤ the requested one) along φ(t) over which
         the reference loop closes, and the reference motion at its start."""
-        while True:
+        while preroll > 0:
             t = float(self.times[0]) - preroll * dt + dt * np.arange(preroll + 1)
             try:
                 with np.errstate(invalid="ignore"):
                     motion = self.mech.motion(t)
-                closes = bool(np.all(np.isfinite(motion.to_numpy())))
-            except ValueError:                    # the reference refuses the instants
-                closes = False
-            if closes or preroll == 0:
-                return preroll, motion.iloc[:1].reset_index(drop=True)
+                if np.all(np.isfinite(motion.to_numpy())):
+                    return preroll, motion.iloc[:1].reset_index(drop=True)
+            except ValueError:                    # the reference refuses those instants
+                pass
             preroll //= 2
+        return 0, self.mech.motion(self.times[:1])
 
     # -- state from the reference ------------------------------------------------
 
@@ -160,30 +173,40 @@ class Model:
 
     # -- modes --------------------------------------------------------------------
 
-    def forward(self) -> tuple[pd.DataFrame, dict[str, Any]]:
+    @property
+    def nstep(self) -> int:
+        """Steps of a forward run: the pre-roll, then every sample interval."""
+        return self.preroll + self.substeps * (len(self.times) - 1)
+
+    def initial_state(self) -> np.ndarray:
+        """The full physics state at the start of the pre-roll (reference q, q̇
+        of every joint and the clock)."""
         m, d = self.m, self.d
         mujoco.mj_resetData(m, d)
         self.set_reference(self.start_motion, 0, coordinates(self.mech, self.topo, self.start_motion))
-        mujoco.mj_forward(m, d)
         state0 = np.empty(mujoco.mj_stateSize(m, FULL))
         mujoco.mj_getState(m, d, state0, FULL)
-        nstep = self.preroll + self.substeps * (len(self.times) - 1)
+        return state0
+
+    def forward(self) -> tuple[pd.DataFrame, dict[str, Any]]:
+        m, d = self.m, self.d
+        state0, nstep = self.initial_state(), self.nstep
         start = time.perf_counter()
-        states, _ = rollout.rollout(m, d, state0[None, :], nstep=nstep) if nstep else (np.empty((1, 0, len(state0))), None)
+        states = rollout.rollout(m, d, state0[None, :], nstep=nstep)[0][0] if nstep else np.empty((0, len(state0)))
         wall = time.perf_counter() - start
-        samples = np.vstack([state0[None, :], states[0]])[self.preroll::self.substeps]
-        snaps, cut_force, torque = [], [], []
+        samples = np.vstack([state0[None, :], states])[self.preroll::self.substeps]
+        (record, pairs), cut_force, torque = self.recorder(), np.empty((len(samples), 2)), np.empty(len(samples))
         loop_rows, drive_row = None, None
-        for state in samples:
+        for k, state in enumerate(samples):
             mujoco.mj_setState(m, d, state, FULL)
             mujoco.mj_forward(m, d)
             mujoco.mj_rnePostConstraint(m, d)
             if loop_rows is None:
                 loop_rows, drive_row = self.efc_rows(self.loop_eq)[:2], self.efc_rows(self.drive_eq)[0]
-            snaps.append(self.snapshot())
-            cut_force.append(d.efc_force[loop_rows])
-            torque.append(self.drive.sign * d.efc_force[drive_row])
-        frame, info = self.columns(snaps, np.array(cut_force), np.array(torque))
+            self.snapshot(pairs, k)
+            cut_force[k] = d.efc_force[loop_rows]
+            torque[k] = self.drive.sign * d.efc_force[drive_row]
+        frame, info = self.columns(record, cut_force, torque)
         info.update(steps=nstep, preroll_steps_used=self.preroll, wall_time_s=wall,
                     nan_free=bool(np.all(np.isfinite(samples))))
         return frame, info
@@ -196,7 +219,7 @@ class Model:
         dofs = [m.jnt_dofadr[self.jid[tj.joint.name]] for tj in self.topo.tree]
         site_i, site_j = (self.sid[s] for s in sites(self.topo.cut))
         jac_i, jac_j = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        snaps, cut_force, torque = [], [], []
+        (record, pairs), cut_force, torque = self.recorder(), np.empty((len(self.times), 2)), np.empty(len(self.times))
         start = time.perf_counter()
         for k in range(len(self.times)):
             mujoco.mj_resetData(m, d)
@@ -211,10 +234,10 @@ class Model:
             tau, lx, ly = np.linalg.lstsq(basis, d.qfrc_inverse[dofs], rcond=None)[0]
             self.apply_loop_force(np.array([lx, ly]))
             mujoco.mj_rnePostConstraint(m, d)
-            snaps.append(self.snapshot())
-            cut_force.append((lx, ly))
-            torque.append(self.drive.sign * tau)
-        frame, info = self.columns(snaps, np.array(cut_force), np.array(torque))
+            self.snapshot(pairs, k)
+            cut_force[k] = lx, ly
+            torque[k] = self.drive.sign * tau
+        frame, info = self.columns(record, cut_force, torque)
         info.update(wall_time_s=time.perf_counter() - start)
         return frame, info
 
@@ -242,21 +265,28 @@ class Model:
         return np.flatnonzero((d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
                               & (d.efc_id[:d.nefc] == eq_id))
 
-    def snapshot(self) -> dict[str, np.ndarray]:
-        """Copies of the data arrays the read-out needs, at this instant
-        (after mj_forward/mj_inverse and mj_rnePostConstraint)."""
-        d = self.d
-        return dict(t=np.array(d.time), qpos=d.qpos.copy(), qvel=d.qvel.copy(), qacc=d.qacc.copy(),
-                    xpos=d.xpos.copy(), cvel=d.cvel.copy(), cacc=d.cacc.copy(), cfrc_int=d.cfrc_int.copy(),
-                    subtree_com=d.subtree_com.copy(), site_xpos=d.site_xpos.copy(),
-                    xaxis=d.xaxis.copy(), qfrc_passive=d.qfrc_passive.copy())
+    def recorder(self) -> tuple[dict[str, np.ndarray], list[tuple[np.ndarray, np.ndarray]]]:
+        """Arrays (samples × field shape) for the data fields the read-out
+        needs, and (destination, live view of the field) pairs for
+        `snapshot`: the views are taken once, as each attribute access
+        creates a new array wrapper, which dominates the per-sample cost."""
+        views = {k: getattr(self.d, k) for k in RECORDED}
+        record = {k: np.empty((len(self.times),) + np.shape(v)) for k, v in views.items()}
+        return record, [(record[k], views[k]) for k in RECORDED]
 
-    def columns(self, snaps: list[dict[str, np.ndarray]], cut_force: np.ndarray,
+    @staticmethod
+    def snapshot(pairs: list[tuple[np.ndarray, np.ndarray]], k: int) -> None:
+        """Store the recorded fields as sample k (after mj_forward/mj_inverse
+        and mj_rnePostConstraint)."""
+        for record, view in pairs:
+            record[k] = view
+
+    def columns(self, S: Mapping[str, np.ndarray], cut_force: np.ndarray,
                 drive_torque: np.ndarray) -> tuple[pd.DataFrame, dict[str, Any]]:
-        """Raw columns at every sample (vectorised over samples) and summary
-        facts. `cut_force` (n, 2) is Fij of the cut pin, `drive_torque` (n,)."""
+        """Raw columns at every sample (vectorised over samples) from the
+        recorded data fields, and summary facts. `cut_force` (n, 2) is Fij
+        of the cut pin, `drive_torque` (n,) the drive's T."""
         m, mech = self.m, self.mech
-        S = {k: np.stack([s[k] for s in snaps]) for k in snaps[0]}
         gravity = np.zeros(3) if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else m.opt.gravity
         col: dict[str, np.ndarray] = {"t": self.times}
         for body, bid in self.bid.items():
@@ -281,6 +311,9 @@ class Model:
                         f"{body}.theta": np.broadcast_to(theta, self.times.shape).astype(float),
                         f"{body}.vx": v[:, 0], f"{body}.vy": v[:, 1], f"{body}.omega": omega + 0.0 * self.times,
                         f"{body}.ax": a[:, 0], f"{body}.ay": a[:, 1], f"{body}.alpha": alpha + 0.0 * self.times})
+        # Only x, y forces and the z couple: the out-of-plane reactions of a
+        # planar loop closed in 3D are statically indeterminate, so MuJoCo's
+        # values there are legitimate but arbitrary and are not reported.
         for tj in self.topo.tree:
             bid, jid, name = self.bid[tj.child], self.jid[tj.joint.name], tj.joint.name
             torque, force = S["cfrc_int"][:, bid, :3], S["cfrc_int"][:, bid, 3:]
@@ -301,7 +334,7 @@ class Model:
         drive_q = S["qpos"][:, m.jnt_qposadr[self.jid[self.drive.joint.name]]]
         info = {"closure_gap_max": float(frame["health.gap"].max()),
                 "drive_error_max": float(np.abs(self.drive.sign * drive_q - mech.drive.law.angle(self.times)).max()),
-                "time_stamp_error_max": float(np.abs(S["t"] - self.times).max())}
+                "time_stamp_error_max": float(np.abs(S["time"] - self.times).max())}
         return frame, info
 
     def cut_damper_couple(self, child: str, col: Mapping[str, np.ndarray]) -> np.ndarray | float:

@@ -22,7 +22,9 @@ Model layout (ENGINE_NOTES, MuJoCo):
   joint's relative rate (for the cut pin the path sums, ω_j − ω_i), so every
   damper is evaluated in every RK4 stage and none hides in a joint default.
 - No geoms, contacts disabled, autoreset disabled, radians, explicit
-  inertials, no joint damping/armature/friction/stiffness/limits.
+  inertials, no joint damping/armature/friction/stiffness/limits. `refsafe`
+  is off so that solref is used as written (it would raise the drive's
+  1·dt time constant to 2·dt; see the adapter's default settings).
 """
 
 from __future__ import annotations
@@ -170,11 +172,12 @@ def planar_izz(topo: Topology, body: str, izz: float, mass: float) -> float:
         return izz
     if any(tj.joint.kind == "revolute" for tj in topo.path(body)):
         raise ValueError(f"MuJoCo needs izz > 0 for the rotating body {body!r}")
-    return mass * 1.0
+    return mass                                  # mass·(1 m)²
 
 
-def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any]) -> str:
-    """The MJCF text of the mechanism with the given adapter settings."""
+def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], dt: float) -> str:
+    """The MJCF text of the mechanism with the given adapter settings and
+    the step `dt` MuJoCo takes (s)."""
     gx, gy = mech.gravity
     site_xml: dict[str, list[str]] = {}
     for j in mech.joints:
@@ -190,7 +193,8 @@ def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any]) -> str:
         else:
             # The axis is given in body_i's frame; MuJoCo wants it in the child's.
             ax, ay = rotate(np.asarray(-tj.rel0 if tj.sign > 0 else 0.0), tj.joint.axis)
-            joint = f'<joint name="{tj.joint.name}" type="slide" pos="{_vec(*tj.point_child, 0)}" axis="{_vec(ax, ay, 0)}"/>'
+            joint = (f'<joint name="{tj.joint.name}" type="slide" pos="{_vec(*tj.point_child, 0)}" '
+                     f'axis="{_vec(ax, ay, 0)}"/>')
         izz = planar_izz(topo, b.name, b.izz, b.mass)
         # Only izz acts in the plane; ixx = iyy = izz/2 keeps the tensor valid.
         inertial = (f'<inertial pos="{_vec(*b.com, 0)}" mass="{b.mass:.17g}" '
@@ -199,8 +203,8 @@ def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any]) -> str:
         return (f'<body name="{b.name}" pos="{_vec(px - float(cx), py - float(cy), 0)}" quat="{_quat_z(tj.rel0)}">'
                 f'{joint}{inertial}{"".join(site_xml.get(b.name, []))}{children}</body>')
 
-    solref = f'{settings["solref_steps"] * settings["timestep"]:.17g} {settings["solref_dampratio"]:.17g}'
-    drive_solref = f'{settings["drive_solref_steps"] * settings["timestep"]:.17g} {settings["solref_dampratio"]:.17g}'
+    solref = f'{settings["solref_steps"] * dt:.17g} {settings["solref_dampratio"]:.17g}'
+    drive_solref = f'{settings["drive_solref_steps"] * dt:.17g} {settings["solref_dampratio"]:.17g}'
     solimp = settings["solimp"]
     drive = topo.of_joint(mech.drive.joint)
     law = mech.drive.law
@@ -213,11 +217,11 @@ def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any]) -> str:
     roots = "".join(body_xml(tj) for tj in topo.tree if tj.parent == GROUND)
     return f"""<mujoco model="{mech.name}">
   <compiler angle="radian" inertiafromgeom="false" autolimits="true" boundmass="0" boundinertia="0"/>
-  <option timestep="{settings['timestep']:.17g}" integrator="{settings['integrator']}"
+  <option timestep="{dt:.17g}" integrator="{settings['integrator']}"
           gravity="{_vec(gx, gy, 0)}" density="0" viscosity="0" wind="0 0 0"
           solver="Newton" tolerance="{settings['tolerance']:.17g}" iterations="{settings['iterations']}"
           noslip_iterations="0">
-    <flag contact="disable" autoreset="disable" gravity="{'enable' if mech.has_gravity else 'disable'}"/>
+    <flag contact="disable" autoreset="disable" refsafe="disable" gravity="{'enable' if mech.has_gravity else 'disable'}"/>
   </option>
   <default>
     <joint damping="0" armature="0" frictionloss="0" stiffness="0" limited="false"/>

@@ -1,15 +1,15 @@
 """Build the PyBullet 3.2.7 model of a generic `Mechanism` (headless client).
 
-Layout ("split", the default): every body that has a joint to the ground is
-a link of one fixed-base multibody whose base is the ground, so each of
-those joints is a leaf with its own force/torque sensor; every other body is
-a free multibody of its own, tied to its neighbours by user constraints
-(`JOINT_POINT2POINT` for a revolute joint, `JOINT_PRISMATIC` for a slider).
-PyBullet's joint sensor is wrong for a joint whose child carries further
-moving links (ENGINE_NOTES: 40–80 % on F12/F32), hence no joint chains.
-Layout "tree" is that naive spanning tree (a breadth-first tree of joints
-from the ground, the remaining joint closing the loop); it exists only so a
-regression test can show the sensor error.
+Layout ("split", the default; `plan_layout`): every multibody is a root with
+leaf links only, so every multibody joint has its own valid force/torque
+sensor (PyBullet's sensor is wrong for a joint whose child carries further
+moving links: ENGINE_NOTES, 40–80 % on F12/F32). The ground is the fixed
+root of the drive joint and the other ground joints; a prismatic joint
+between two moving bodies makes one of them the free root of the other;
+the remaining joints close the loop as `JOINT_POINT2POINT` constraints.
+Layout "tree" is the naive spanning tree (breadth first from the ground,
+the remaining joint closing the loop); it exists only so a regression test
+can show the sensor error.
 
 Frames: a tree link's frame sits at its joint point with the body's
 orientation; every PyBullet inertial frame is at the body's centre of mass
@@ -81,27 +81,70 @@ class Model:
     coms: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
-def spanning_tree(mechanism: Mechanism, layout: str) -> list[tuple[Joint, str, str]]:
-    """Tree joints as (joint, parent body, child body), parents first.
+Link = tuple[Joint, str, str]   # (joint, parent body, child body)
 
-    "split": only the joints to the ground (every tree joint is a leaf);
-    "tree": breadth-first from the ground over all joints.
+
+def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
+    """Multibodies as {root body: its joints (joint, parent, child), parents
+    first}; every joint not listed closes the loop as a user constraint.
+
+    "split": every multibody is a root with leaf links only. The drive joint
+    is a leaf of the ground (its motor); every prismatic joint is a leaf
+    (PyBullet's slider constraint has 5 rows, which over-constrain a planar
+    loop closed by point-to-point constraints); the other ground joints are
+    leaves of the ground where the body is still free; every body left over
+    is the root of its own multibody. "tree": one breadth-first spanning
+    tree from the ground (the naive layout).
     """
-    if layout not in ("split", "tree"):
-        raise ValueError(f"unknown layout {layout!r} (known: split, tree)")
-    reached, order, queue = {GROUND}, [], deque([GROUND])
+    drive = mechanism.joint(mechanism.drive.joint)
+    if GROUND not in (drive.body_i, drive.body_j) or drive.kind != "revolute":
+        raise ValueError(f"pybullet: the drive joint {drive.name!r} must be a revolute joint to the ground")
+    if layout == "tree":
+        return {GROUND: _breadth_first(mechanism)}
+    if layout != "split":
+        raise ValueError(f"pybullet: unknown layout {layout!r} (known: split, tree)")
+    stars: dict[str, list[Link]] = {GROUND: []}
+    children: set[str] = set()
+
+    def attach(joint: Joint) -> bool:
+        for child, parent in ((joint.body_j, joint.body_i), (joint.body_i, joint.body_j)):
+            if child != GROUND and child not in children and child not in stars and parent not in children:
+                stars.setdefault(parent, []).append((joint, parent, child))
+                children.add(child)
+                return True
+        return False
+
+    attach(drive)
+    for joint in mechanism.joints:
+        if joint.kind == "prismatic" and not attach(joint):
+            raise ValueError(f"pybullet: prismatic joint {joint.name!r} cannot be made a leaf")
+    for joint in mechanism.joints:
+        if GROUND in (joint.body_i, joint.body_j) and joint.name != drive.name and joint.kind == "revolute":
+            attach(joint)
+    for body in mechanism.bodies:
+        if body.name not in children:
+            stars.setdefault(body.name, [])
+    return stars
+
+
+def _breadth_first(mechanism: Mechanism) -> list[Link]:
+    """A breadth-first spanning tree from the ground, listed depth first
+    (createMultiBody renumbers links depth first; this keeps our indices)."""
+    reached, kids, queue = {GROUND}, {}, deque([GROUND])
     while queue:
         parent = queue.popleft()
         for joint in mechanism.joints:
-            if parent not in (joint.body_i, joint.body_j):
-                continue
-            child = joint.body_j if joint.body_i == parent else joint.body_i
-            if child in reached or (layout == "split" and parent != GROUND):
-                continue
-            reached.add(child)
-            order.append((joint, parent, child))
-            queue.append(child)
-    return order
+            if parent in (joint.body_i, joint.body_j):
+                child = joint.body_j if joint.body_i == parent else joint.body_i
+                if child not in reached:
+                    reached.add(child)
+                    kids.setdefault(parent, []).append((joint, parent, child))
+                    queue.append(child)
+
+    def depth_first(parent: str) -> list[Link]:
+        return [item for link in kids.get(parent, []) for item in (link, *depth_first(link[2]))]
+
+    return depth_first(GROUND)
 
 
 def side(joint: Joint, body: str) -> tuple[float, float]:
@@ -146,8 +189,10 @@ def build(mechanism: Mechanism, timestep: float, layout: str, t_start: float) ->
         configure_solver(client, timestep, mechanism.gravity)
         pose = mechanism.motion(np.array([t_start]))
         rates = mechanism.motion(np.array([t_start - timestep / 2]))
-        model = _build_tree(mechanism, client, timestep, layout, pose, rates)
-        _build_free_bodies(mechanism, model, pose, rates)
+        model = Model(client, timestep, BodyHandle(-1, -1), {}, {}, {},
+                      {b.name: b.com for b in mechanism.bodies})
+        for root, links in plan_layout(mechanism, layout).items():
+            _build_multibody(mechanism, model, root, links, pose, rates)
         _build_constraints(mechanism, model)
         disarm_defaults(mechanism, model)
         return model
@@ -164,24 +209,28 @@ def _omega(motion: pd.DataFrame, body: str) -> float:
     return 0.0 if body == GROUND else float(motion[f"{body}.omega"].iloc[0])
 
 
-def _build_tree(mechanism: Mechanism, client: int, timestep: float, layout: str, pose: pd.DataFrame,
-                rates: pd.DataFrame) -> Model:
-    """The ground as a fixed base with the tree joints' bodies as links."""
-    tree = spanning_tree(mechanism, layout)
-    index = {GROUND: 0}                       # createMultiBody: 0 = base
-    origin = {GROUND: (0.0, 0.0)}             # link frame origin in body frame
+def _com(model: Model, body: str) -> tuple[float, float]:
+    return (0.0, 0.0) if body == GROUND else model.coms[body]
+
+
+def _build_multibody(mechanism: Mechanism, model: Model, root: str, links: list[Link],
+                     pose: pd.DataFrame, rates: pd.DataFrame) -> None:
+    """One multibody: the root as base (the ground: fixed, mass 0; a body:
+    base frame at its COM) and the given joints' children as links."""
+    index = {root: 0}                         # createMultiBody: 0 = base
+    # Link frame origin in each body's frame: the base frame is at the COM.
+    origin = {root: _com(model, root)}
     masses, inertial, positions, orientations, parents, types, axes = [], [], [], [], [], [], []
-    for k, (joint, parent, child) in enumerate(tree):
+    for k, (joint, parent, child) in enumerate(links):
         index[child] = k + 1
         origin[child] = side(joint, child)
         body = mechanism.body(child)
         masses.append(body.mass)
         inertial.append((body.com[0] - origin[child][0], body.com[1] - origin[child][1], 0.0))
-        # Relative to the parent's inertial (COM) frame, as createMultiBody
-        # expects; both frames have the parent body's orientation.
-        parent_com = (0.0, 0.0) if parent == GROUND else mechanism.body(parent).com
+        # Relative to the parent's link frame (URDF semantics, measured);
+        # both frames have the parent body's orientation.
         pj = side(joint, parent)
-        positions.append((pj[0] - parent_com[0], pj[1] - parent_com[1], 0.0))
+        positions.append((pj[0] - origin[parent][0], pj[1] - origin[parent][1], 0.0))
         parents.append(index[parent])
         if joint.kind == "revolute":
             orientations.append(quat_z(0.0))
@@ -194,25 +243,34 @@ def _build_tree(mechanism: Mechanism, client: int, timestep: float, layout: str,
             # The axis is fixed in body_i; the joint axis is in the child frame.
             ax = joint.axis if child == joint.body_i else _rotate(-rel, joint.axis)
             axes.append((ax[0], ax[1], 0.0))
-    n = len(tree)
+    n = len(links)
+    if root == GROUND:
+        base = dict(baseMass=0.0, basePosition=(0, 0, 0), baseOrientation=quat_z(0.0))
+    else:
+        com = point_motion(pose, root, _com(model, root))
+        base = dict(baseMass=mechanism.body(root).mass, basePosition=(com["x"][0], com["y"][0], 0.0),
+                    baseOrientation=quat_z(_angle(pose, root)))
     uid = p.createMultiBody(
-        baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
-        basePosition=(0, 0, 0), baseOrientation=quat_z(0.0),
+        **base, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
         linkMasses=masses, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=[-1] * n,
         linkPositions=positions, linkOrientations=orientations,
         linkInertialFramePositions=inertial, linkInertialFrameOrientations=[quat_z(0.0)] * n,
         linkParentIndices=parents, linkJointTypes=types, linkJointAxis=axes,
-        useMaximalCoordinates=False, physicsClientId=client)
-    model = Model(client, timestep, BodyHandle(uid, -1), {}, {}, {},
-                  {b.name: b.com for b in mechanism.bodies})
-    for k, (joint, parent, child) in enumerate(tree):
+        useMaximalCoordinates=False, physicsClientId=model.client)
+    if root == GROUND:
+        model.ground = BodyHandle(uid, -1)
+    else:
+        model.bodies[root] = BodyHandle(uid, -1)
+        vcom = point_motion(rates, root, _com(model, root))
+        p.resetBaseVelocity(uid, (vcom["vx"][0], vcom["vy"][0], 0.0), (0.0, 0.0, _omega(rates, root)),
+                            physicsClientId=model.client)
+    for k, (joint, parent, child) in enumerate(links):
         handle = BodyHandle(uid, k)
         model.bodies[child] = handle
         model.tree_joints[joint.name] = TreeJoint(joint, child, handle)
         q, qd = _joint_coordinate(mechanism, joint, parent, child, pose, rates)
         p.resetJointState(uid, k, q, qd, physicsClientId=model.client)
         p.enableJointForceTorqueSensor(uid, k, True, physicsClientId=model.client)
-    return model
 
 
 def _joint_coordinate(mechanism: Mechanism, joint: Joint, parent: str, child: str,
@@ -238,39 +296,21 @@ def _rotate(theta: float, v: tuple[float, float]) -> tuple[float, float]:
     return (float(c * v[0] - s * v[1]), float(s * v[0] + c * v[1]))
 
 
-def _build_free_bodies(mechanism: Mechanism, model: Model, pose: pd.DataFrame,
-                       rates: pd.DataFrame) -> None:
-    """Every body not in the tree: its own multibody, base at the COM."""
-    for body in mechanism.bodies:
-        if body.name in model.bodies:
-            continue
-        com = point_motion(pose, body.name, body.com)
-        vcom = point_motion(rates, body.name, body.com)
-        uid = p.createMultiBody(
-            baseMass=body.mass, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
-            basePosition=(com["x"][0], com["y"][0], 0.0), baseOrientation=quat_z(_angle(pose, body.name)),
-            physicsClientId=model.client)
-        p.resetBaseVelocity(uid, (vcom["vx"][0], vcom["vy"][0], 0.0), (0.0, 0.0, _omega(rates, body.name)),
-                            physicsClientId=model.client)
-        model.bodies[body.name] = BodyHandle(uid, -1)
-
-
 def _build_constraints(mechanism: Mechanism, model: Model) -> None:
-    """Every joint not in the tree closes the loop as a user constraint
-    (pivots relative to each side's COM frame; parent = body_i)."""
+    """Every joint not in a multibody closes the loop as a point-to-point
+    constraint (pivots relative to each side's COM frame; parent = body_i);
+    plan_layout keeps prismatic joints out of this list."""
     for joint in mechanism.joints:
         if joint.name in model.tree_joints:
             continue
         parent, child = joint.body_i, joint.body_j
         pivots = []
         for body in (parent, child):
-            com = (0.0, 0.0) if body == GROUND else model.coms[body]
-            point = side(joint, body)
+            point, com = side(joint, body), _com(model, body)
             pivots.append((point[0] - com[0], point[1] - com[1], 0.0))
         handles = {**model.bodies, GROUND: model.ground}
         pa, ch = handles[parent], handles[child]
-        kind = p.JOINT_POINT2POINT if joint.kind == "revolute" else p.JOINT_PRISMATIC
-        cid = p.createConstraint(pa.uid, pa.link, ch.uid, ch.link, kind, (joint.axis[0], joint.axis[1], 0.0),
+        cid = p.createConstraint(pa.uid, pa.link, ch.uid, ch.link, p.JOINT_POINT2POINT, (0.0, 0.0, 1.0),
                                  pivots[0], pivots[1], physicsClientId=model.client)
         # The cap is an impulse converted with the time step current at
         # this call: configure_solver has already set it.

@@ -25,7 +25,8 @@ HERE = Path(__file__).resolve().parent
 TOP_KEYS = {"name", "mechanism", "description", "tags", "geometry", "mass", "drive",
             "effects", "time", "tolerance", "engines"}
 REQUIRED_TABLES = ("geometry", "mass", "drive", "time")
-BRANCHES = {"fourbar": ("open", "crossed"), "slider_crank": ("right", "left")}
+BRANCHES = {"fourbar": ("open", "crossed"), "slider_crank": ("right", "left"),
+            "inverted_slider": ("left", "right")}
 #: The ground may be given a mass (as in the published four-bar study); it
 #: does not move, so the value is checked and otherwise has no effect.
 IGNORED_MASS_KEYS = {"ground"}

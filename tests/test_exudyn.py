@@ -19,8 +19,7 @@ from mechval.scenarios import parse
 from scenario_data import fourbar, slider_crank
 
 exudyn = pytest.importorskip("exudyn")
-from mechval.engines.exudyn import simulation_settings, solve  # noqa: E402
-from mechval.engines.exudyn_model import build_model  # noqa: E402
+from mechval.engines.exudyn_model import build_model, simulation_settings, solve  # noqa: E402
 
 #: fourbar-seed at the default setting: every signal within this fraction
 #: of its peak (measured 1.7e-5 at the derived step 7.7e-4 s).
@@ -33,14 +32,14 @@ HIGH_ACCURACY_ERROR = 1e-6
 
 
 @pytest.fixture(scope="module")
-def engine():
+def adapter():
     return engine_or_skip("exudyn")
 
 
-def errors(engine, scenario, overrides=None, reference=None):
-    """Discrepancy records of the engine on the scenario."""
+def errors(adapter, scenario, overrides=None, reference=None):
+    """Discrepancy records of the Exudyn adapter on the scenario."""
     reference = reference or simulate_reference(scenario)
-    return compare(reference, engine.simulate(scenario, overrides), scenario.tolerance_for("exudyn"),
+    return compare(reference, adapter.simulate(scenario, overrides), scenario.tolerance_for("exudyn"),
                    scenario=scenario.name)
 
 
@@ -82,9 +81,9 @@ def test_model_holds_only_the_scene_effects():
     assert len(item_types(full)) == len(item_types(bare)) + 3
 
 
-def test_no_files_and_no_console_output(engine, tmp_path, monkeypatch, capfd):
+def test_no_files_and_no_console_output(adapter, tmp_path, monkeypatch, capfd):
     monkeypatch.chdir(tmp_path)
-    engine.simulate(short_seed())
+    adapter.simulate(short_seed())
     assert list(tmp_path.iterdir()) == []
     out, err = capfd.readouterr()
     assert out == "" and err == ""
@@ -92,16 +91,16 @@ def test_no_files_and_no_console_output(engine, tmp_path, monkeypatch, capfd):
 
 # --- the traps --------------------------------------------------------------
 
-def test_trap_exudyn_initial_accelerations_ignore_the_drive(engine):
+def test_trap_exudyn_initial_accelerations_ignore_the_drive(adapter):
     """Exudyn's own initial-acceleration solve ignores φ''; with undamped
     trapezoidal index-2 the wrong start never decays (measured 16 %)."""
     scene = short_seed()
     reference = simulate_reference(scene)
-    assert max_relative(errors(engine, scene, reference=reference)) < 1e-5
-    assert max_relative(errors(engine, scene, {"compute_initial_accelerations": True}, reference)) > 1e-2
+    assert max_relative(errors(adapter, scene, reference=reference)) < 1e-5
+    assert max_relative(errors(adapter, scene, {"compute_initial_accelerations": True}, reference)) > 1e-2
 
 
-def test_trap_modified_newton_with_default_tolerances(engine):
+def test_trap_modified_newton_with_default_tolerances(adapter):
     """Modified Newton at Exudyn's default tolerances caps force accuracy
     (measured 3.8e-5 at dt 1e-4, where full Newton at the scaled tolerance
     gives 8e-9)."""
@@ -109,27 +108,27 @@ def test_trap_modified_newton_with_default_tolerances(engine):
     reference = simulate_reference(scene)
     exudyn_defaults = {"timestep": 1e-4, "full_newton": False,
                        "newton_relative_tolerance": 1e-8, "newton_absolute_tolerance": 1e-10}
-    assert max_relative(errors(engine, scene, {"timestep": 1e-4}, reference)) < 1e-7
-    assert max_relative(errors(engine, scene, exudyn_defaults, reference)) > 1e-5
+    assert max_relative(errors(adapter, scene, {"timestep": 1e-4}, reference)) < 1e-7
+    assert max_relative(errors(adapter, scene, exudyn_defaults, reference)) > 1e-5
 
 
-def test_trap_fixed_absolute_newton_tolerance_aborts_at_round_off(engine):
+def test_trap_fixed_absolute_newton_tolerance_aborts_at_round_off(adapter):
     """When the relative goal is out of reach, a fixed absolute tolerance of
     1e-14 N never converges (the residual is a force at round-off), while
     the tolerance scaled by the force estimate ends Newton there."""
     scene = short_seed(mass={"crank": 12.5e3, "coupler": 25.0e3, "rocker": 25.0e3})
     unreachable = {"newton_relative_tolerance": 1e-16}
     with pytest.raises(exudyn.SolverError):
-        engine.simulate(scene, {**unreachable, "newton_absolute_tolerance": 1e-14})
-    records = errors(engine, scene, unreachable)
+        adapter.simulate(scene, {**unreachable, "newton_absolute_tolerance": 1e-14})
+    records = errors(adapter, scene, unreachable)
     assert passed(records), format_records(records)
 
 
-def test_trap_spectral_radius_one_makes_index3_forces_zig_zag(engine):
+def test_trap_spectral_radius_one_makes_index3_forces_zig_zag(adapter):
     """ρ∞ = 1 (no numerical damping) leaves the index-3 multipliers
     oscillating step to step; the adapter refuses it."""
     mechanism = build_mechanism(builtin_scenario("fourbar-seed"))
-    settings = engine.default_settings(mechanism, builtin_scenario("fourbar-seed").time.t)
+    settings = adapter.default_settings(mechanism, builtin_scenario("fourbar-seed").time.t)
     turns = {}
     for rho in (0.9, 1.0):
         model = build_model(mechanism, 0.0)
@@ -138,15 +137,15 @@ def test_trap_spectral_radius_one_makes_index3_forces_zig_zag(engine):
         turns[rho] = int(np.sum(np.diff(np.sign(np.diff(torque))) != 0))
     assert turns == {0.9: 0, 1.0: 99}
     with pytest.raises(ValueError, match="spectral_radius"):
-        engine.simulate(short_seed(), {"solver": "index3", "spectral_radius": 1.0})
+        adapter.simulate(short_seed(), {"solver": "index3", "spectral_radius": 1.0})
 
 
-def test_fixed_steps_recorded_every_step(engine):
+def test_fixed_steps_recorded_every_step(adapter):
     """adaptive_step off and sensor write period 0: one stored row per fixed
     step (Exudyn's default period, 0.01 s, would keep one row in 13 here)."""
     scene = short_seed()
     mechanism = build_mechanism(scene)
-    settings = engine.default_settings(mechanism, scene.time.t)
+    settings = adapter.default_settings(mechanism, scene.time.t)
     simulation = simulation_settings(settings, 1.0, settings["timestep"])
     assert not simulation.timeIntegration.adaptiveStep
     assert simulation.solution.sensors.writePeriod == 0.0
@@ -160,13 +159,13 @@ def test_fixed_steps_recorded_every_step(engine):
 # --- signs, variants, user scenes, accuracy --------------------------------
 
 @pytest.mark.parametrize("gravity", [[0.0, -9.81], [0.0, 9.81]])
-def test_gravity_and_torque_signs(engine, gravity):
+def test_gravity_and_torque_signs(adapter, gravity):
     """A crank turned slowly against gravity: T12 is the holding torque, so
     it follows the reference's sign and flips with gravity."""
     scene = parse(fourbar(drive={"omega0": 0.2, "alpha": 0.0}, effects={"gravity": gravity},
                           time={"end": 2.0, "samples": 201}), "test")
     reference = simulate_reference(scene)
-    result = engine.simulate(scene)
+    result = adapter.simulate(scene)
     for signal in ("T12", "F12y"):
         big = np.abs(reference[signal]) > 0.1 * np.abs(reference[signal]).max()
         assert np.all(np.sign(result[signal][big]) == np.sign(reference[signal][big])), signal
@@ -175,12 +174,12 @@ def test_gravity_and_torque_signs(engine, gravity):
     assert max_relative(compare(reference, result, scene.tolerance_for("exudyn"))) < 1e-4
 
 
-def test_index3_variant(engine):
+def test_index3_variant(adapter):
     """Generalised-α index-3: exact closure, and the pre-roll puts its force
     start-up transient (3e-4 relative, ~100 steps at ρ = 0.9) before t = 0,
     so no sample is dropped."""
     scene = builtin_scenario("fourbar-seed")
-    result = engine.simulate(scene, {"solver": "index3"})
+    result = adapter.simulate(scene, {"solver": "index3"})
     records = compare(builtin_reference("fourbar-seed"), result, scene.tolerance_for("exudyn"))
     assert passed(records), format_records(records)
     assert max_relative(records) < 2e-4
@@ -201,22 +200,22 @@ def test_index3_variant(engine):
             effects={"damping": {"O2": 0.5, "A": 0.2, "B": 0.3, "O4": 0.4}},
             time={"end": 0.2, "samples": 431}),
 ], ids=["slider-crank", "fourbar"])
-def test_user_scene_150_rad_per_s_damped(engine, data):
+def test_user_scene_150_rad_per_s_damped(adapter, data):
     """A crank at 150 rad/s sampled every 4°, damping at every pin: default
     settings meet the default tolerances."""
     scene = parse(data, "test")
-    records = errors(engine, scene)
+    records = errors(adapter, scene)
     assert passed(records), format_records(records)
 
 
-def test_fourbar_seed_default_accuracy(engine):
-    records = errors(engine, builtin_scenario("fourbar-seed"), reference=builtin_reference("fourbar-seed"))
+def test_fourbar_seed_default_accuracy(adapter):
+    records = errors(adapter, builtin_scenario("fourbar-seed"), reference=builtin_reference("fourbar-seed"))
     relative = records[~records["class"].isin(["angle"])]["relative_error"]
     assert relative.max() < SEED_DEFAULT_ERROR, format_records(records)
 
 
-def test_high_accuracy_setting(engine):
-    records = errors(engine, builtin_scenario("fourbar-seed"), HIGH_ACCURACY, builtin_reference("fourbar-seed"))
+def test_high_accuracy_setting(adapter):
+    records = errors(adapter, builtin_scenario("fourbar-seed"), HIGH_ACCURACY, builtin_reference("fourbar-seed"))
     assert records["relative_error"].max() < HIGH_ACCURACY_ERROR, format_records(records)
     angles = records[records["class"] == "angle"]["max_error"]
     assert angles.max() < HIGH_ACCURACY_ERROR, format_records(records)
@@ -264,12 +263,12 @@ def inverted_slider_crank(damping: float) -> Mechanism:
 
 
 @pytest.mark.parametrize("damping", [0.0, 3.0])
-def test_prismatic_joint_between_moving_bodies(engine, damping):
+def test_prismatic_joint_between_moving_bodies(adapter, damping):
     """The adapter builds any single-loop planar mechanism: here the guide
     turns with the rocker (and is damped along itself)."""
     mechanism = inverted_slider_crank(damping)
     times = np.linspace(0.0, 1.0, 201)
-    result = engine.run(mechanism, times, engine.default_settings(mechanism, times))
+    result = adapter.run(mechanism, times, adapter.default_settings(mechanism, times))
     reference = raw_reference(mechanism, times)
     for column in mechanism.reaction_columns():
         if column == "slide.M":

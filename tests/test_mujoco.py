@@ -21,7 +21,7 @@ from scenario_data import fourbar, slider_crank
 
 mujoco = pytest.importorskip("mujoco")
 
-from mechval.engines.mujoco import Model, high_accuracy  # noqa: E402  (needs mujoco)
+from mechval.engines.mujoco import Model, MujocoAdapter  # noqa: E402  (needs mujoco)
 
 FORCE_CLASSES = ("force", "torque")
 #: Inverse mode evaluates the same equations as the reference at the same
@@ -71,11 +71,13 @@ def test_model_has_only_the_scenes_effects(engine, name):
     off = m.opt.disableflags
     assert m.ngeom == 0 and off & mujoco.mjtDisableBit.mjDSBL_CONTACT
     assert off & mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    assert off & mujoco.mjtDisableBit.mjDSBL_REFSAFE               # solref as written
     assert m.opt.enableflags == 0                              # no sleep, energy, override, ...
     np.testing.assert_array_equal(m.opt.gravity, [*mech.gravity, 0.0])
     assert bool(off & mujoco.mjtDisableBit.mjDSBL_GRAVITY) == (not mech.has_gravity)
     assert m.opt.density == 0 and m.opt.viscosity == 0 and not m.opt.wind.any()
-    assert m.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4 and m.opt.timestep == settings["timestep"]
+    dt = settings["timestep"] / settings["refine"]
+    assert m.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4 and m.opt.timestep == dt
     assert m.opt.tolerance == 0 and m.opt.iterations == settings["iterations"]
     for field in ("dof_damping", "dof_armature", "dof_frictionloss", "jnt_stiffness", "jnt_limited"):
         assert not getattr(m, field).any(), field
@@ -93,8 +95,7 @@ def test_model_has_only_the_scenes_effects(engine, name):
         assert b.mass[0] == body.mass and b.inertia[2] == (body.izz or body.mass)
         np.testing.assert_array_equal(b.ipos[:2], body.com)
     # Soft constraints as recorded.
-    dt = settings["timestep"]
-    loop, drive = m.eq("O4__loop" if mech.kind == "fourbar" else "B__loop"), m.eq("drive")
+    loop, drive = m.eq(f"{model.topo.cut.name}__loop"), m.eq("drive")
     np.testing.assert_allclose(loop.solref, [settings["solref_steps"] * dt, settings["solref_dampratio"]], rtol=1e-15)
     np.testing.assert_allclose(drive.solref, [settings["drive_solref_steps"] * dt, settings["solref_dampratio"]],
                                rtol=1e-15)
@@ -140,10 +141,7 @@ def test_torque_sign(engine):
 @pytest.mark.parametrize("setting", ["default", "high-accuracy"])
 def test_accuracy_on_fourbar_seed(engine, setting):
     scenario = builtin_scenario("fourbar-seed")
-    overrides = {}
-    if setting == "high-accuracy":
-        overrides = high_accuracy(engine.default_settings(build_mechanism(scenario), scenario.time.t))
-    result = engine.simulate(scenario, overrides)
+    result = engine.simulate(scenario, MujocoAdapter.variants[setting])
     records = compare(builtin_reference("fourbar-seed"), result, scenario.tolerance, scenario="fourbar-seed",
                       setting=setting)
     goal = DEFAULT_GOAL if setting == "default" else HIGH_ACCURACY_GOAL

@@ -14,7 +14,8 @@ from __future__ import annotations
 import argparse
 import time
 
-from mechval.engines.exudyn import SOLVERS, ExudynAdapter, prepare
+from mechval.engines.exudyn import ExudynAdapter, prepare
+from mechval.engines.exudyn_model import SOLVERS
 from mechval.linkages import build_mechanism
 from mechval.scenarios import builtin_names, load
 

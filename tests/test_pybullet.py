@@ -1,0 +1,255 @@
+"""PyBullet adapter: every PyBullet default that adds an effect is off (read
+back from the built model, or shown by re-arming it on the same model), the
+leaf layout beats the naive tree, signs, a user-style 150 rad/s scene, and
+the documented high-accuracy setting."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import engine_or_skip
+from mechval.compare import compare, format_records, passed
+from mechval.linkages import build_mechanism
+from mechval.reference import simulate_reference
+from mechval.scenarios import parse
+from mechval.signals import canonical_signals
+from scenario_data import fourbar, slider_crank
+
+p = pytest.importorskip("pybullet")
+from mechval.engines.pybullet import run_model  # noqa: E402
+from mechval.engines.pybullet_model import NO_CAP, build  # noqa: E402
+
+#: Forces and torque of the short seed at the default setting (measured
+#: 3.9e-5); a re-armed default must make them clearly worse than this.
+SEED_DEFAULT_ERROR = 1e-4
+#: The documented high-accuracy setting (fourbar-seed, timestep 1e-5 s):
+#: every force and T12 within HIGH_ACCURACY_ERROR of its peak (measured
+#: ≤ 1.9e-6, 38 s wall for the 6 s run) except F14, the rocker sensor, which
+#: converges only as O(dt): its centripetal term uses the mid-step speed
+#: ω(t − dt/2) (substituting that speed into m·r·ω² leaves an O(dt²)
+#: residual). Measured F14x 1.9e-5 at 1e-5 s. A smaller step does not get
+#: there: at 4e-6 s (78 s wall) every force is worse, 1.1e-5–1.8e-5 and
+#: F14x 2.5e-5 — an error floor that rises as dt shrinks (impulse/dt).
+HIGH_ACCURACY = {"timestep": 1e-5}
+HIGH_ACCURACY_ERROR = 1e-5
+F14_AT_HIGH_ACCURACY = 1.9e-5
+
+
+@pytest.fixture(scope="module")
+def adapter():
+    return engine_or_skip("pybullet")
+
+
+def short_seed(**overrides):
+    """fourbar-seed's mechanism over its first second (cheap effect tests)."""
+    return parse(fourbar(time={"end": 1.0, "samples": 101}, **overrides), "test")
+
+
+def records(adapter, scenario, overrides=None, prepare=None):
+    """Discrepancy records against the reference; `prepare(model)` may
+    re-arm a PyBullet default on the built model before stepping."""
+    mechanism = build_mechanism(scenario)
+    settings = adapter.settings_for(scenario, mechanism, overrides)
+    raw = run_model(mechanism, scenario.time.t, settings, prepare)
+    result = canonical_signals(mechanism, raw.frame, "pybullet", settings=raw.info, missing=raw.missing)
+    return compare(simulate_reference(scenario), result, scenario.tolerance, scenario=scenario.name)
+
+
+def force_error(recs) -> float:
+    return float(recs[recs["class"].isin(["force", "torque"])]["relative_error"].max())
+
+
+@pytest.fixture(scope="module")
+def seed_error(adapter):
+    error = force_error(records(adapter, short_seed()))
+    assert error < SEED_DEFAULT_ERROR
+    return error
+
+
+@pytest.fixture
+def coasting():
+    """The short seed's model with its loop constraints removed and no
+    gravity: each link must keep its speed exactly unless a default acts."""
+    scenario = short_seed(effects=None)
+    mechanism = build_mechanism(scenario)
+    model = build(mechanism, 1e-3, "split", 0.0)
+    for constraint in model.constraints.values():
+        p.removeConstraint(constraint.cid, physicsClientId=model.client)
+    yield model
+    p.disconnect(model.client)
+
+
+def step(model, n=20):
+    for _ in range(n):
+        p.stepSimulation(physicsClientId=model.client)
+
+
+def test_default_velocity_motors_are_released(coasting):
+    rocker = coasting.bodies["rocker"]
+    p.resetJointState(rocker.uid, rocker.link, 0.3, 2.0, physicsClientId=coasting.client)
+    step(coasting)
+    assert p.getJointState(rocker.uid, rocker.link, physicsClientId=coasting.client)[1] == pytest.approx(2.0, abs=1e-12)
+
+
+def test_no_linear_or_angular_damping(coasting):
+    coupler = coasting.bodies["coupler"]
+    p.resetBaseVelocity(coupler.uid, (0.5, -0.2, 0.0), (0.0, 0.0, 3.0), physicsClientId=coasting.client)
+    step(coasting)
+    linear, angular = p.getBaseVelocity(coupler.uid, physicsClientId=coasting.client)
+    np.testing.assert_allclose(linear, (0.5, -0.2, 0.0), atol=1e-12)
+    np.testing.assert_allclose(angular, (0.0, 0.0, 3.0), atol=1e-12)
+
+
+def test_no_joint_speed_clamp(coasting):
+    # PyBullet clamps joint speeds at 100 rad/s by default.
+    rocker = coasting.bodies["rocker"]
+    p.resetJointState(rocker.uid, rocker.link, 0.0, 150.0, physicsClientId=coasting.client)
+    step(coasting)
+    assert p.getJointState(rocker.uid, rocker.link, physicsClientId=coasting.client)[1] == pytest.approx(150.0, abs=1e-9)
+
+
+def test_shapeless_links_get_their_inertia_and_no_contacts(coasting):
+    mechanism = build_mechanism(short_seed())
+    for name, handle in coasting.bodies.items():
+        body = mechanism.body(name)
+        info = p.getDynamicsInfo(handle.uid, handle.link, physicsClientId=coasting.client)
+        assert info[0] == pytest.approx(body.mass)
+        assert info[2] == pytest.approx((body.izz,) * 3)
+        assert p.getCollisionShapeData(handle.uid, handle.link, physicsClientId=coasting.client) == ()
+
+
+def test_point_to_point_cap_lifted(adapter, seed_error):
+    scenario = short_seed()
+    model = build(build_mechanism(scenario), 1e-3, "split", 0.0)
+    try:
+        caps = [p.getConstraintInfo(c.cid, physicsClientId=model.client)[10] for c in model.constraints.values()]
+    finally:
+        p.disconnect(model.client)
+    assert caps and all(cap == NO_CAP for cap in caps)
+
+    def cap(model):
+        for c in model.constraints.values():
+            p.changeConstraint(c.cid, maxForce=50.0, physicsClientId=model.client)
+    assert force_error(records(adapter, scenario, prepare=cap)) > 100 * seed_error
+
+
+def test_no_sub_steps_and_fixed_step(adapter, seed_error):
+    scenario = short_seed()
+    model = build(build_mechanism(scenario), 1e-3, "split", 0.0)
+    try:
+        params = p.getPhysicsEngineParameters(physicsClientId=model.client)
+    finally:
+        p.disconnect(model.client)
+    assert params["numSubSteps"] == 0 and params["fixedTimeStep"] == 1e-3
+    # Sub-steps corrupt the reported torque and constraint forces.
+    rearm = lambda m: p.setPhysicsEngineParameter(numSubSteps=4, physicsClientId=m.client)  # noqa: E731
+    assert force_error(records(adapter, scenario, prepare=rearm)) > 100 * seed_error
+
+
+def test_solver_does_not_stop_early(adapter, seed_error):
+    # Dantzig ignores the residual threshold; PGS (its fallback) honours it:
+    # under PGS our threshold 0 keeps the error near the Dantzig figure,
+    # PyBullet's default 1e-7 makes it ~1000× worse (measured 5.9e-2).
+    def pgs(threshold=None):
+        extra = {} if threshold is None else {"solverResidualThreshold": threshold}
+        return lambda m: p.setPhysicsEngineParameter(constraintSolverType=p.CONSTRAINT_SOLVER_LCP_SI,
+                                                     physicsClientId=m.client, **extra)
+    ours = force_error(records(adapter, short_seed(), prepare=pgs()))
+    default = force_error(records(adapter, short_seed(), prepare=pgs(1e-7)))
+    assert ours < 2 * seed_error
+    assert default > 100 * ours
+
+
+def test_dantzig_is_at_least_as_exact_as_pgs(adapter, seed_error):
+    rearm = lambda m: p.setPhysicsEngineParameter(constraintSolverType=p.CONSTRAINT_SOLVER_LCP_SI,  # noqa: E731
+                                                  physicsClientId=m.client)
+    assert seed_error <= force_error(records(adapter, short_seed(), prepare=rearm))
+
+
+def test_no_cfm_and_full_error_reduction(adapter, seed_error):
+    # Measured: erp 0.2 → 1.4e-3, globalCFM 1e-4 → 0.8 on the short seed.
+    for rearm in ({"erp": 0.2}, {"globalCFM": 1e-4}):
+        prepare = lambda m, kw=rearm: p.setPhysicsEngineParameter(physicsClientId=m.client, **kw)  # noqa: E731
+        assert force_error(records(adapter, short_seed(), prepare=prepare)) > 10 * seed_error, rearm
+
+
+def test_naive_tree_layout_breaks_the_crank_sensor(adapter, seed_error):
+    """In one spanning tree the crank carries the coupler, and PyBullet's
+    sensor at O2 is then off by tens of percent (measured 54 % on F12x)."""
+    naive = records(adapter, short_seed(), {"layout": "tree"})
+    f12 = naive[naive["signal"].isin(["F12x", "F12y"])]["relative_error"].max()
+    assert f12 > 0.1 > 1000 * seed_error
+
+
+def test_gravity_and_torque_signs(adapter):
+    """A slider-crank held still at 1 rad under gravity −y, then +y: the
+    static T12 and pin forces equal the reference's (signs included) and
+    flip with gravity."""
+    held = dict(drive={"phi0": 1.0, "omega0": 0.0, "alpha": 0.0}, time={"end": 0.1, "samples": 11})
+    results = {}
+    for g in (-9.81, 9.81):
+        scenario = parse(slider_crank(effects={"gravity": [0.0, g]}, **held), "test")
+        result, reference = adapter.simulate(scenario), simulate_reference(scenario)
+        for name in ("T12", "F12y", "F32y", "F43y", "F14y"):
+            np.testing.assert_allclose(result[name], reference[name], rtol=1e-6, atol=1e-9, err_msg=name)
+        results[g] = result
+    down, up = results[-9.81], results[9.81]
+    # Holding the crank against gravity at θ2 = 1 rad: the motor pushes the
+    # crank counter-clockwise (T12 > 0) and the ground pin carries weight.
+    assert down["T12"][0] > 0.1 and down["F12y"][0] > 0.0
+    for name in ("T12", "F12y", "F32y", "F14y"):
+        np.testing.assert_allclose(down[name], -up[name], rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("scene", [
+    slider_crank(geometry={"offset": 0.03, "branch": "left"},
+                 drive={"phi0": 0.5, "omega0": 150.0, "alpha": -20.0},
+                 effects={"gravity": [1.0, -9.81], "damping": {"O2": 0.01, "A": 0.005, "B": 0.004, "guide": 1.5}},
+                 time={"end": 0.3, "samples": 301}),
+    fourbar(geometry={"ground": 0.5, "crank": 0.15, "coupler": 0.55, "rocker": 0.4, "branch": "crossed"},
+            drive={"phi0": 0.3, "omega0": 150.0, "alpha": 10.0},
+            effects={"gravity": [0.0, -9.81], "damping": {"O2": 0.1, "A": 0.05, "B": 0.08, "O4": 0.06}},
+            time={"end": 0.2, "samples": 201}),
+], ids=["slider-150", "fourbar-150"])
+def test_user_scene_at_150_rad_s_meets_default_tolerances(adapter, scene):
+    scenario = parse(scene, "test")
+    recs = records(adapter, scenario)
+    assert passed(recs), "\n" + format_records(recs)
+
+
+def late_seed():
+    """fourbar-seed over 0.3 s from t = 5 s, where its forces peak (a cheap
+    stand-in for the 6 s run: same state, same peaks)."""
+    return parse(fourbar(drive={"phi0": 17.5, "omega0": 6.0, "alpha": 1.0}, time={"end": 0.3, "samples": 31}),
+                 "test")
+
+
+def high_accuracy_errors(adapter, scenario):
+    recs = records(adapter, scenario, HIGH_ACCURACY)
+    recs = recs[recs["class"].isin(["force", "torque"])].set_index("signal")["relative_error"]
+    return recs.drop(["F14x", "F14y"]), recs[["F14x", "F14y"]]
+
+
+@pytest.fixture(scope="module")
+def late_seed_high_accuracy(adapter):
+    return high_accuracy_errors(adapter, late_seed())
+
+
+def test_high_accuracy_setting_short(late_seed_high_accuracy):
+    others, _ = late_seed_high_accuracy
+    assert others.max() <= HIGH_ACCURACY_ERROR, others
+
+
+@pytest.mark.xfail(strict=True, reason=f"F14 (rocker sensor) converges as O(dt) into a rising floor: {F14_AT_HIGH_ACCURACY:g} at 1e-5 s")
+def test_high_accuracy_setting_short_f14(late_seed_high_accuracy):
+    _, f14 = late_seed_high_accuracy
+    assert f14.max() <= HIGH_ACCURACY_ERROR, f14
+
+
+@pytest.mark.slow
+def test_high_accuracy_setting_fourbar_seed(adapter):
+    from conftest import builtin_scenario
+    others, f14 = high_accuracy_errors(adapter, builtin_scenario("fourbar-seed"))
+    assert others.max() <= HIGH_ACCURACY_ERROR, others
+    assert f14.max() == pytest.approx(F14_AT_HIGH_ACCURACY, rel=0.2), f14

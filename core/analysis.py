@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .linkages import linkage
-from .scenario import Scenario
+from .scenario import Scenario, ScenarioError
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,46 @@ def fourbar_type(ground: float, crank: float, coupler: float, rocker: float) -> 
     return "Grashof (s + l < p + q)", kind
 
 
+#: Largest condition number of the velocity Jacobian the reference accepts at
+#: a sample: its rounding error grows like cond·ε (≈ 1e-9 relative at 1e7),
+#: beyond which "exact to rounding" could not be promised.
+SINGULAR_COND = 1e7
+
+
+def jacobian_condition(kind: str, geometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    """2-norm condition number of the loop's velocity Jacobian at each
+    instant, columns scaled to the same units (distance to singularity)."""
+    th2, th3 = k["theta2"], k["theta3"]
+    if kind == "fourbar":
+        # Unknowns (ω3, ω4): columns b·j·e3, −c·j·e4 (metres).
+        b, c, th4 = geometry["coupler"], geometry["rocker"], k["theta4"]
+        return _cond2(-b * np.sin(th3), c * np.sin(th4), b * np.cos(th3), -c * np.cos(th4))
+    if kind == "slider_crank":
+        # Unknowns (r3·ω3, v4), so both columns carry metres per second.
+        return _cond2(-np.sin(th3), -1.0 + 0 * th3, np.cos(th3), 0 * th3)
+    # Link 3 slides along link 4 pivoting at O4: unknowns (ρ·ω3, ḃ),
+    # ρ = |A − O4|, unit columns j·(A − O4)/ρ and e3.
+    a, d = geometry["crank"], geometry["ground"]
+    rx, ry = a * np.cos(th2) - d, a * np.sin(th2)
+    rho = np.hypot(rx, ry)
+    return _cond2(-ry / rho, np.cos(th3), rx / rho, np.sin(th3))
+
+
+def check_singularity(scenario: Scenario) -> None:
+    """Refuse a scenario with a sample too close to a singular configuration
+    to be trusted, naming the instant and the condition number."""
+    module = linkage(scenario.mechanism)
+    t = scenario.time.t
+    cond = jacobian_condition(scenario.mechanism, scenario.geometry,
+                              module.kinematics(module.Geometry(**scenario.geometry), scenario.drive, t))
+    worst = int(np.argmax(np.where(np.isfinite(cond), cond, np.inf)))
+    if not cond[worst] <= SINGULAR_COND:
+        raise ScenarioError(scenario.source, "geometry",
+                            f"the sample at t = {t[worst]:.6g} s is too close to a singular configuration "
+                            f"(velocity Jacobian condition number {cond[worst]:.3g} > {SINGULAR_COND:.0e}); "
+                            "its reference values cannot be trusted")
+
+
 def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
     geometry = scenario.geometry
     module = linkage(scenario.mechanism)
@@ -91,9 +131,6 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
         th4 = k["theta4"]
         grashof, kind = fourbar_type(geometry["ground"], geometry["crank"], geometry["coupler"], geometry["rocker"])
         mu = np.abs(np.arcsin(np.sin(th4 - th3)))   # acute angle coupler–rocker
-        # Velocity Jacobian of the loop in (ω3, ω4): columns b·j·e3, −c·j·e4.
-        b, c = geometry["coupler"], geometry["rocker"]
-        cond = _cond2(-b * np.sin(th3), c * np.sin(th4), b * np.cos(th3), -c * np.cos(th4))
         toggles += [(float(x), "toggle: crank and coupler collinear (rocker at a limit, ω4 = 0)")
                     for x in _sign_changes(t, np.sin(th3 - th2))]
     elif scenario.mechanism == "slider_crank":
@@ -103,8 +140,6 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
             "crank cannot turn fully (conrod ≤ crank + |offset|)"
         kind = "offset slider-crank" if e else "in-line slider-crank"
         mu = np.pi / 2 - np.abs(np.arcsin(np.sin(th3)))  # conrod vs the guide's normal
-        # Jacobian in (ω3·r3, v4) so both columns carry metres per second.
-        cond = _cond2(-np.sin(th3), -1.0 + 0 * th3, np.cos(th3), 0 * th3)
         toggles += [(float(x), "dead centre: crank and conrod collinear (slider at a limit, v4 = 0)")
                     for x in _sign_changes(t, np.sin(th3 - th2))]
     else:   # slotted_lever, inverted_slider: link 3 slides along link 4, which pivots at O4
@@ -118,14 +153,11 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
         # The pin force is normal to the slide, the pin moves normal to the
         # crank: μ = 90° with the crank along the slide, 0 at a stroke end.
         mu = np.arcsin(np.abs(np.cos(th2 - th3)))
-        # Jacobian in (ρ·ω3, ḃ), ρ = |A − O4|: unit columns j·(A − O4)/ρ, e3.
-        rx, ry = a * np.cos(th2) - d, a * np.sin(th2)
-        rho = np.hypot(rx, ry)
-        cond = _cond2(-ry / rho, np.cos(th3), rx / rho, np.sin(th3))
         toggles += [(float(x), "stroke end: crank perpendicular to the slide (link 3 at a limit, ω3 = 0)")
                     for x in _sign_changes(t, np.cos(th2 - th3))]
         quick_return = module.quick_return_ratio(module.Geometry(**geometry))
         measured = measured_stroke_ratio(t, k["omega3"], k["omega2"])
+    cond = jacobian_condition(scenario.mechanism, geometry, k)
     worst = int(np.argmax(cond))
     return Analysis(
         scenario=scenario.name, mechanism=scenario.mechanism, grashof=grashof, linkage_type=kind,

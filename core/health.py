@@ -43,6 +43,16 @@ def joint_gaps(mech: Mechanism, raw) -> np.ndarray:
     return np.max(gaps, axis=0)
 
 
+def slide_rate(raw, joint) -> np.ndarray:
+    """Sliding speed of a prismatic joint: (v_Pj − v_Pi)·u. The two points
+    coincide up to the slide offset along u, so body_i's rotation adds
+    nothing along u."""
+    Pj, Pi = point_motion(raw, joint.body_j, joint.point_j), point_motion(raw, joint.body_i, joint.point_i)
+    theta_i = 0.0 if joint.body_i == GROUND else np.asarray(raw[f"{joint.body_i}.theta"])
+    ux, uy = rotate(np.asarray(theta_i, dtype=float), joint.axis)
+    return (Pj["vx"] - Pi["vx"]) * ux + (Pj["vy"] - Pi["vy"]) * uy
+
+
 def power_balance(mech: Mechanism, raw) -> tuple[np.ndarray, np.ndarray]:
     """Drive power T·ω and the rate of energy plus damper losses, from the
     motion in `raw` (Norton §11.2 energy method)."""
@@ -58,8 +68,7 @@ def power_balance(mech: Mechanism, raw) -> tuple[np.ndarray, np.ndarray]:
         if joint.kind == "revolute":
             relative = omega(joint.body_j) - omega(joint.body_i)
         else:
-            Pj, Pi = point_motion(raw, joint.body_j, joint.point_j), point_motion(raw, joint.body_i, joint.point_i)
-            relative = np.hypot(Pj["vx"] - Pi["vx"], Pj["vy"] - Pi["vy"])
+            relative = slide_rate(raw, joint)
         rate = rate + joint.damping * relative**2
     drive = mech.joint(mech.drive.joint)
     power = np.asarray(raw[DRIVE_TORQUE]) * (omega(drive.body_j) - omega(drive.body_i))

@@ -39,11 +39,12 @@ Only in-plane force components and the z couple are reported: the
 out-of-plane reactions of a planar loop closed in 3D are statically
 indeterminate, so any engine value there is legitimate and meaningless.
 
-High accuracy (variant "high-accuracy": refine = 10, solref_steps = 20): a
-tenth of the rule's step, the loop's solref at 20 of those steps. The soft
-constraints' error falls as the square of their time constant, but at 10
-steps RK4 shows a floor near 1e-5 once dt ≲ 1e-4. On fourbar-seed every
-force and torque is then within ~1e-6 relative (default: ~1e-5).
+High accuracy (variant "high-accuracy": refine = 4, solref_steps = 20): a
+quarter of the rule's step, the loop's solref at 20 of those steps. The
+soft constraints' error falls as the square of their time constant, but at
+10 steps RK4 shows a floor near 1e-5 once dt ≲ 1e-4. On fourbar-seed every
+force and torque is then within 6e-7 relative (default: 9e-6); a tenth of
+the step gains nothing more (5e-7).
 """
 
 from __future__ import annotations
@@ -71,10 +72,10 @@ class MujocoAdapter(EngineAdapter):
     name: ClassVar[str] = "mujoco"
     library: ClassVar[str] = "mujoco"
     distribution: ClassVar[str] = "mujoco"
-    #: "high-accuracy": a tenth of the rule's step, solref 20 steps
+    #: "high-accuracy": a quarter of the rule's step, solref 20 steps
     #: (≤ 1e-6 relative on fourbar-seed's forces, see the module docstring).
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
-        "default": {}, "high-accuracy": {"refine": 10, "solref_steps": 20.0}}
+        "default": {}, "high-accuracy": {"refine": 4, "solref_steps": 20.0}}
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
         """RK4 at the shared step rule (`timestep`: 0.01 rad per step of the
@@ -113,9 +114,9 @@ class MujocoAdapter(EngineAdapter):
         build_time = time.perf_counter() - start
         runner = model.forward if settings["mode"] == "forward" else model.inverse
         frame, info = runner()
+        solref = lambda eq: " ".join(f"{v:.6g}" for v in model.m.eq_solref[eq])
         info.update(build_time_s=build_time, step=model.dt, solimp=settings["solimp"],
-                    solref=f'{model.m.eq_solref[model.loop_eq][0]:.6g} {model.m.eq_solref[model.loop_eq][1]:.6g}',
-                    drive_solref=f'{model.m.eq_solref[model.drive_eq][0]:.6g} {model.m.eq_solref[model.drive_eq][1]:.6g}')
+                    solref=solref(model.loop_eq), drive_solref=solref(model.drive_eq))
         return RawRun(frame, {}, info)
 
 
@@ -123,7 +124,7 @@ class Model:
     """A compiled MuJoCo model of the mechanism and its index maps."""
 
     def __init__(self, mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]):
-        self.mech, self.times, self.settings = mech, np.asarray(times, dtype=float), settings
+        self.mech, self.times = mech, np.asarray(times, dtype=float)
         dt = self.dt = settings["timestep"] / settings["refine"]
         interval = float(self.times[1] - self.times[0]) if len(self.times) > 1 else dt
         self.substeps = int(round(interval / dt))
@@ -131,7 +132,6 @@ class Model:
             raise ValueError(f"mujoco: the step {dt} does not divide the sample interval {interval}")
         preroll = int(np.ceil(settings["preroll_timeconsts"] * settings["solref_steps"]))
         self.preroll, self.start_motion = self.start(preroll, dt)
-        self.t_start = float(self.start_motion["t"].iloc[0])
         self.topo: Topology = topology(mech, self.start_motion)
         self.xml = mjcf(mech, self.topo, settings, dt)
         self.m = mujoco.MjModel.from_xml_string(self.xml)
@@ -219,6 +219,7 @@ class Model:
         dofs = [m.jnt_dofadr[self.jid[tj.joint.name]] for tj in self.topo.tree]
         site_i, site_j = (self.sid[s] for s in sites(self.topo.cut))
         jac_i, jac_j = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        e_drive = np.eye(m.nv)[:, m.jnt_dofadr[self.jid[self.drive.joint.name]]]
         (record, pairs), cut_force, torque = self.recorder(), np.empty((len(self.times), 2)), np.empty(len(self.times))
         start = time.perf_counter()
         for k in range(len(self.times)):
@@ -229,8 +230,7 @@ class Model:
             mujoco.mj_jacSite(m, d, jac_j, None, site_j)
             # qfrc_inverse = e_drive·τ + (J_j − J_i)ᵀ·λ over the mechanism's
             # coordinates (λ = in-plane force on body_j through the cut pin).
-            basis = np.column_stack([np.eye(m.nv)[:, m.jnt_dofadr[self.jid[self.drive.joint.name]]],
-                                     (jac_j - jac_i)[:2].T])[dofs]
+            basis = np.column_stack([e_drive, (jac_j - jac_i)[:2].T])[dofs]
             tau, lx, ly = np.linalg.lstsq(basis, d.qfrc_inverse[dofs], rcond=None)[0]
             self.apply_loop_force(np.array([lx, ly]))
             mujoco.mj_rnePostConstraint(m, d)

@@ -17,6 +17,7 @@ import numpy as np
 
 from mechval.drive import DriveLaw
 from mechval.engines.registry import ENGINE_NAMES
+from mechval.analysis import check_singularity
 from mechval.linkages import LINKAGES
 from mechval.scenario import (DEFAULT_TOLERANCE, EngineTable, LinkMass, Scenario,
                               ScenarioError, TimeGrid, Tolerance)
@@ -143,9 +144,11 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None) -> Scenario
     tolerance = Tolerance().updated(_tolerance(top.sub("tolerance")))
     engines = _engines(top.sub("engines"))
     module.check_closure(module.Geometry(**geometry), drive, _dense_times(time), source)
-    return Scenario(name=name, mechanism=kind, description=description, geometry=geometry, mass=mass,
+    scenario = Scenario(name=name, mechanism=kind, description=description, geometry=geometry, mass=mass,
                     drive=drive, gravity=gravity, damping=damping, time=time, tolerance=tolerance,
                     engines=engines, tags=tuple(tags), source=Path(source) if source else None)
+    check_singularity(scenario)
+    return scenario
 
 
 def _dense_times(time: TimeGrid):

@@ -17,7 +17,7 @@ from mechval.scenario import ScenarioError
 from mechval.scenarios import parse
 from mechval.signals import signal_names, with_slide_columns
 from scenario_data import merge
-from test_reference import energy_rate_and_losses
+from mechval.health import power_balance
 
 
 def slotted_lever(**overrides) -> dict:
@@ -72,25 +72,13 @@ def slides(mech, t):
     return with_slide_columns(mech, motion, {})[0]
 
 
-def damping_losses(mech, raw):
-    """Power the dampers dissipate: c·ω_rel² per pin, c·ṡ² per slide (ṡ the
-    sliding rate along the turning axis, not the pins' relative speed)."""
-    raw = with_slide_columns(mech, raw, {})[0]
-    rate = lambda body: 0.0 if body == GROUND else raw[f"{body}.omega"].to_numpy()
-    return sum(j.damping * (raw[f"{j.name}.v"].to_numpy() if j.kind == "prismatic"
-                            else rate(j.body_j) - rate(j.body_i)) ** 2 for j in mech.joints)
-
-
 @pytest.mark.parametrize("name", SCENES)
 def test_power_balance(name):
     """T12·ω2 = d/dt(kinetic + potential) + damping losses, to ~1e-12."""
     scenario = SCENES[name]
     mech = build_mechanism(scenario)
-    raw = raw_reference(mech, scenario.time.t)
-    de, _ = energy_rate_and_losses(mech, raw)
-    losses = damping_losses(mech, raw)
-    power = raw["drive.T"].to_numpy() * raw["crank.omega"].to_numpy()
-    assert np.abs(power - de - losses).max() <= 1e-12 * (np.abs(power).max() + np.abs(de).max())
+    power, rate = power_balance(mech, raw_reference(mech, scenario.time.t))
+    assert np.abs(power - rate).max() <= 1e-12 * (np.abs(power).max() + np.abs(rate).max())
 
 
 @pytest.mark.parametrize("name", SCENES)

@@ -103,7 +103,8 @@ def test_model_has_only_the_scenes_effects(engine, name):
         np.testing.assert_array_equal(eq.solimp, [float(v) for v in settings["solimp"].split()])
 
 
-@pytest.mark.parametrize("name", BUILTIN)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if "hard" in builtin_scenario(n).tags
+                                  else n for n in BUILTIN])
 def test_inverse_mode_reproduces_the_reference(engine, name):
     scenario = builtin_scenario(name)
     result = engine.simulate(scenario, {"mode": "inverse"})

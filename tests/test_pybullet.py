@@ -106,7 +106,8 @@ def test_no_joint_speed_clamp(coasting):
     rocker = coasting.bodies["rocker"]
     p.resetJointState(rocker.uid, rocker.link, 0.0, 150.0, physicsClientId=coasting.client)
     step(coasting)
-    assert p.getJointState(rocker.uid, rocker.link, physicsClientId=coasting.client)[1] == pytest.approx(150.0, abs=1e-9)
+    speed = p.getJointState(rocker.uid, rocker.link, physicsClientId=coasting.client)[1]
+    assert speed == pytest.approx(150.0, abs=1e-9)
 
 
 def test_shapeless_links_get_their_inertia_and_no_contacts(coasting):
@@ -172,6 +173,19 @@ def test_no_cfm_and_full_error_reduction(adapter, seed_error):
     for rearm in ({"erp": 0.2}, {"globalCFM": 1e-4}):
         prepare = lambda m, kw=rearm: p.setPhysicsEngineParameter(physicsClientId=m.client, **kw)  # noqa: E731
         assert force_error(records(adapter, short_seed(), prepare=prepare)) > 10 * seed_error, rearm
+
+
+def test_client_disconnected_even_on_error(adapter):
+    scenario = short_seed()
+    mechanism = build_mechanism(scenario)
+    clients = []
+
+    def fail(model):
+        clients.append(model.client)
+        raise RuntimeError("boom")
+    with pytest.raises(RuntimeError, match="boom"):
+        run_model(mechanism, scenario.time.t, adapter.settings_for(scenario, mechanism), fail)
+    assert not p.isConnected(physicsClientId=clients[0])
 
 
 def test_naive_tree_layout_breaks_the_crank_sensor(adapter, seed_error):
@@ -241,7 +255,8 @@ def test_high_accuracy_setting_short(late_seed_high_accuracy):
     assert others.max() <= HIGH_ACCURACY_ERROR, others
 
 
-@pytest.mark.xfail(strict=True, reason=f"F14 (rocker sensor) converges as O(dt) into a rising floor: {F14_AT_HIGH_ACCURACY:g} at 1e-5 s")
+@pytest.mark.xfail(strict=True, reason=f"F14 (rocker sensor) converges as O(dt) into a rising floor: "
+                                       f"{F14_AT_HIGH_ACCURACY:g} at 1e-5 s")
 def test_high_accuracy_setting_short_f14(late_seed_high_accuracy):
     _, f14 = late_seed_high_accuracy
     assert f14.max() <= HIGH_ACCURACY_ERROR, f14
@@ -253,3 +268,10 @@ def test_high_accuracy_setting_fourbar_seed(adapter):
     others, f14 = high_accuracy_errors(adapter, builtin_scenario("fourbar-seed"))
     assert others.max() <= HIGH_ACCURACY_ERROR, others
     assert f14.max() == pytest.approx(F14_AT_HIGH_ACCURACY, rel=0.2), f14
+
+
+def test_scenario_table_overrides_settings(adapter):
+    scenario = short_seed(engines={"pybullet": {"timestep": 5e-4, "layout": "tree"}})
+    mechanism = build_mechanism(scenario)
+    defaults = adapter.default_settings(mechanism, scenario.time.t)
+    assert adapter.settings_for(scenario, mechanism) == {**defaults, "timestep": 5e-4, "layout": "tree"}

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linkages import linkage
+from .linkages import build_mechanism, linkage
 from .scenario import Scenario, ScenarioError
 
 
@@ -104,19 +104,37 @@ def jacobian_condition(kind: str, geometry, k: dict[str, np.ndarray]) -> np.ndar
     return _cond2(-ry / rho, np.cos(th3), rx / rho, np.sin(th3))
 
 
-def check_singularity(scenario: Scenario) -> None:
-    """Refuse a scenario with a sample too close to a singular configuration
-    to be trusted, naming the instant and the condition number."""
+def check_trustworthy(scenario: Scenario) -> None:
+    """Refuse a scenario whose reference cannot be trusted at some sample:
+    values that overflow float64, or a configuration too close to singular
+    (condition number above SINGULAR_COND). Names the instant and why."""
+    with np.errstate(all="ignore"):       # overflow is detected and reported below
+        _check_trustworthy(scenario)
+
+
+def _check_trustworthy(scenario: Scenario) -> None:
+    from .reference import raw_reference     # the reference builds on this module's siblings
     module = linkage(scenario.mechanism)
     t = scenario.time.t
-    cond = jacobian_condition(scenario.mechanism, scenario.geometry,
-                              module.kinematics(module.Geometry(**scenario.geometry), scenario.drive, t))
+    kinematics = module.kinematics(module.Geometry(**scenario.geometry), scenario.drive, t)
+    _refuse_nonfinite(scenario, t, np.column_stack(list(kinematics.values())), "drive",
+                      "the crank's motion overflows float64")
+    cond = jacobian_condition(scenario.mechanism, scenario.geometry, kinematics)
     worst = int(np.argmax(np.where(np.isfinite(cond), cond, np.inf)))
     if not cond[worst] <= SINGULAR_COND:
         raise ScenarioError(scenario.source, "geometry",
                             f"the sample at t = {t[worst]:.6g} s is too close to a singular configuration "
                             f"(velocity Jacobian condition number {cond[worst]:.3g} > {SINGULAR_COND:.0e}); "
                             "its reference values cannot be trusted")
+    raw = raw_reference(build_mechanism(scenario), t)
+    _refuse_nonfinite(scenario, t, raw.to_numpy(), "mass",
+                      "the reaction forces overflow float64 (masses × accelerations too large)")
+
+
+def _refuse_nonfinite(scenario: Scenario, t: np.ndarray, values: np.ndarray, key: str, why: str) -> None:
+    bad = ~np.isfinite(values).all(axis=1)
+    if bad.any():
+        raise ScenarioError(scenario.source, key, f"{why} at t = {t[int(np.argmax(bad))]:.6g} s")
 
 
 def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:

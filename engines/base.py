@@ -8,8 +8,12 @@ canonical signals and comparing happen elsewhere.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import importlib
 import importlib.metadata
+import os
+import sys
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Mapping
@@ -90,6 +94,30 @@ class EngineAdapter(ABC):
         raw = self.run(mechanism, scenario.time.t, settings)
         return canonical_signals(mechanism, raw.frame, self.name, self.version(),
                                  {**settings, **raw.info}, raw.missing, health(mechanism, raw.frame, raw.missing))
+
+
+@contextlib.contextmanager
+def native_output_silenced():
+    """Send what C code prints to stdout and stderr (file descriptors 1, 2)
+    to /dev/null for the duration: some engines print banners and solver
+    notices from C, which would clutter `mechval` output and reports.
+    Python exceptions are unaffected."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    try:
+        with open(os.devnull, "w") as devnull:
+            for fd in saved:
+                os.dup2(devnull.fileno(), fd)
+        yield
+    finally:
+        # C's stdio buffers a pipe: flush it while it still points nowhere.
+        ctypes.CDLL(None).fflush(None)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        for fd, copy in saved.items():
+            os.dup2(copy, fd)
+            os.close(copy)
 
 
 def step_rate(mechanism: Mechanism, times: np.ndarray, dense: int = 20001) -> float:

@@ -42,12 +42,10 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 import pandas as pd
-import pybullet as p
-
 from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism, rotate
 
 from .base import EngineAdapter, RawRun, default_step
-from .pybullet_model import NO_CAP, Model, build
+from .pybullet_model import NO_CAP, Model, build, p   # p: pybullet, imported quietly there
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
 #: base.default_step). PyBullet's rocker sensor converges only as O(dt)

@@ -27,7 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-import pybullet as p
+from .base import native_output_silenced
+
+with native_output_silenced():      # PyBullet prints its build time on import
+    import pybullet as p
 
 from mechval.mechanism import GROUND, Joint, Mechanism, point_motion
 
@@ -186,7 +189,8 @@ def build(mechanism: Mechanism, timestep: float, layout: str, t_start: float) ->
     semi-implicit Euler velocity stands for the step's middle)."""
     client = p.connect(p.DIRECT)
     try:
-        configure_solver(client, timestep, mechanism.gravity)
+        with native_output_silenced():      # "switched solver" notices from C
+            configure_solver(client, timestep, mechanism.gravity)
         pose = mechanism.motion(np.array([t_start]))
         rates = mechanism.motion(np.array([t_start - timestep / 2]))
         model = Model(client, timestep, BodyHandle(-1, -1), {}, {}, {},

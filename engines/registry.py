@@ -37,8 +37,9 @@ def adapter_class(name: str) -> "type[EngineAdapter]":
     module_name, class_name = ADAPTERS[name].split(":")
     try:
         module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        raise EngineUnavailable(f"{name}: adapter module {module_name} not found ({exc})") from None
+    except Exception as exc:  # a missing or broken engine must not break the rest
+        raise EngineUnavailable(f"{name}: adapter module {module_name} cannot be imported "
+                                f"({type(exc).__name__}: {exc})") from None
     return getattr(module, class_name)
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from mechval.drive import DriveLaw
 from mechval.engines.registry import ENGINE_NAMES
-from mechval.analysis import check_singularity
+from mechval.analysis import check_trustworthy
 from mechval.linkages import LINKAGES
 from mechval.scenario import (DEFAULT_TOLERANCE, EngineTable, LinkMass, Scenario,
                               ScenarioError, TimeGrid, Tolerance)
@@ -147,7 +147,7 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None) -> Scenario
     scenario = Scenario(name=name, mechanism=kind, description=description, geometry=geometry, mass=mass,
                     drive=drive, gravity=gravity, damping=damping, time=time, tolerance=tolerance,
                     engines=engines, tags=tuple(tags), source=Path(source) if source else None)
-    check_singularity(scenario)
+    check_trustworthy(scenario)
     return scenario
 
 

@@ -89,6 +89,7 @@ def cmd_run(args) -> int:
     import os
     from tqdm import tqdm
     from mechval.reports.build import summary_markdown, write_report, provenance
+    from mechval.reports.stability import stability_section
     from .compare import passed
     from .runner import discrepancies, references_for, run_tasks, tasks_for
 
@@ -107,7 +108,8 @@ def cmd_run(args) -> int:
         outcomes = run_tasks(tasks, workers=args.workers or os.cpu_count() or 1, timeout=args.timeout,
                              on_done=done)
     records = discrepancies(outcomes, references)
-    write_report(out, scenarios, references, outcomes, records)
+    sections = [s for s in (stability_section(records, scenarios),) if s]
+    write_report(out, scenarios, references, outcomes, records, sections)
     print(summary_markdown(records, scenarios, provenance()))
     print(f"report: {out / 'index.html'}")
     return 0 if passed(records) else 1

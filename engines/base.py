@@ -46,6 +46,14 @@ class EngineAdapter(ABC):
     distribution: ClassVar[str]
     #: Settings reported by `mechval run`: name → overrides of the defaults.
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
+    #: Work-precision sweeps (`mechval cost`): the setting that is the time
+    #: step; the ladder of steps as rotations per step at the run's peak
+    #: rate Ω (`step_rate`; 0.1 … 0.001 rad spans two decades of step and
+    #: scales with the scene); the variants crossed with it (name →
+    #: overrides; the one with no overrides is the default).
+    step_setting: ClassVar[str] = "timestep"
+    cost_ladder: ClassVar[tuple[float, ...]] = (0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
+    cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
 
     @classmethod
     def unavailable_reason(cls) -> str:

@@ -74,6 +74,8 @@ class ExudynAdapter(EngineAdapter):
     #: timestep 1e-4 on fourbar-seed: every signal within 3e-7 of its peak,
     #: angles 5e-8 rad; a fixed step is no variant for every scene.)
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}, "index3": {"solver": "index3"}}
+    #: Both solvers for `mechval cost` (the ladder sets `timestep`).
+    cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"index2": {}, "index3": {"solver": "index3"}}
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
         """Step from the scenario's motion (`default_step`); each deliberate

@@ -76,6 +76,14 @@ class MujocoAdapter(EngineAdapter):
     #: (≤ 1e-6 relative on fourbar-seed's forces, see the module docstring).
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "default": {}, "high-accuracy": {"refine": 4, "solref_steps": 20.0}}
+    #: Integrators for `mechval cost` (the ladder sets `timestep`). Euler and
+    #: implicitfast need solref ≥ 2·dt on both equalities (below that they
+    #: blow up, ENGINE_NOTES); RK4 with solref 20·dt lowers the error floor
+    #: that 10·dt leaves (module docstring).
+    cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "RK4": {}, "RK4 solref 20dt": {"solref_steps": 20.0},
+        "Euler": {"integrator": "Euler", "solref_steps": 2.0, "drive_solref_steps": 2.0},
+        "implicitfast": {"integrator": "implicitfast", "solref_steps": 2.0, "drive_solref_steps": 2.0}}
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
         """RK4 at the shared step rule (`timestep`: 0.01 rad per step of the

@@ -40,7 +40,7 @@ class Section:
 
     anchor: str
     title: str
-    html: str
+    html: str   # markupsafe.Markup: rendered (and escaped) by its owner
 
 
 def provenance() -> dict[str, str]:
@@ -88,22 +88,34 @@ def _cell(records: pd.DataFrame) -> dict:
                 title=f"worst: {worst['signal']} (max error {worst['max_error']:.3g} at t = {worst['t_max']:.4g} s)")
 
 
-def summary_matrix(records: pd.DataFrame, scenarios: Sequence[Scenario]) -> dict:
-    labels = list(dict.fromkeys(_label(e, s) for e, s in zip(records["engine"], records["setting"])))
+def by_run(records: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """Records grouped by engine run label ("mujoco", "exudyn [index3]"), in
+    order of first appearance."""
+    labels = pd.Series([label(e, s) for e, s in zip(records["engine"], records["setting"])], index=records.index)
+    return {name: group for name, group in records.groupby(labels, sort=False)}
+
+
+def matrix_rows(records: pd.DataFrame, scenarios: Sequence[Scenario], cell) -> dict:
+    """Scenario × engine-run table with cell(records of one run) per cell."""
+    columns = list(by_run(records))
+    empty = records.iloc[0:0]
     rows = []
     for scenario in scenarios:
-        mine = records[records["scenario"] == scenario.name]
-        cells = [_cell(mine[[_label(e, s) == label for e, s in zip(mine["engine"], mine["setting"])]])
-                 for label in labels]
-        rows.append(dict(scenario=scenario.name, anchor=_anchor(scenario.name), cells=cells))
-    return dict(columns=labels, rows=rows)
+        runs = by_run(records[records["scenario"] == scenario.name])
+        rows.append(dict(scenario=scenario.name, anchor=anchor(scenario.name),
+                         cells=[cell(runs.get(column, empty)) for column in columns]))
+    return dict(columns=columns, rows=rows)
 
 
-def _label(engine: str, setting: str) -> str:
+def summary_matrix(records: pd.DataFrame, scenarios: Sequence[Scenario]) -> dict:
+    return matrix_rows(records, scenarios, _cell)
+
+
+def label(engine: str, setting: str) -> str:
     return engine if setting == "default" else f"{engine} [{setting}]"
 
 
-def _anchor(name: str) -> str:
+def anchor(name: str) -> str:
     return "s-" + "".join(c if c.isalnum() else "-" for c in name)
 
 
@@ -128,13 +140,11 @@ def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta:
 
 def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Outcome],
                       records: pd.DataFrame) -> dict:
-    results = {_label(o.task.engine, o.task.setting): o.signals for o in outcomes if o.signals is not None}
+    results = {label(o.task.engine, o.task.setting): o.signals for o in outcomes if o.signals is not None}
     mine = records[records["scenario"] == scenario.name]
-    bounds = {label: {r["signal"]: r["bound"] for _, r in mine[[_label(e, s) == label for e, s in
-                                                                  zip(mine["engine"], mine["setting"])]].iterrows()}
-              for label in results}
+    bounds = {run: dict(zip(group["signal"], group["bound"])) for run, group in by_run(mine).items()}
     return dict(
-        name=scenario.name, anchor=_anchor(scenario.name), mechanism=scenario.mechanism,
+        name=scenario.name, anchor=anchor(scenario.name), mechanism=scenario.mechanism,
         description=scenario.description, tolerance=dict(scenario.tolerance.bounds),
         drawing=plots.mechanism_drawing(build_mechanism(scenario), scenario.time.end),
         overlays=plots.signal_overlays(reference, results),

@@ -1,0 +1,229 @@
+"""Work-precision sweeps: what accuracy costs in wall time, per engine.
+
+Every engine runs its ladder of time steps (the adapter's `cost_ladder`,
+rotations per step at the run's peak rate Ω, each snapped to the sample
+interval divided by a 1-2-5 count, so the step divides the interval as
+every adapter requires), crossed with its `cost_variants`, plus its default
+step. One point (one setting) is one task: its timing repeats stay on one
+worker, and every task goes through the same `Executor` (a local process
+pool or a Dask cluster), so the errors do not depend on where it ran.
+
+Time is measured inside the worker: the whole `simulate` call (integration,
+reading the signals out, mapping them) minus the adapter's `build_time_s`,
+median of the repeats, per simulated second. The adapters' own
+`wall_time_s` (differently scoped: MuJoCo's is the rollout alone) is kept
+as `engine_s_per_sim_s`. The reference is timed the same way (whole
+`simulate_reference` call) and every time is also given as a ratio to it.
+
+Errors are those of `mechval.compare.compare`, the largest per signal
+class: relative to the signal's peak for relative classes, absolute (rad,
+m) for angle and position; "force+torque" is the larger of the two
+relative classes. Failures (an exception, a crashed or hung worker,
+non-finite values, an assembly-branch flip) are data in the `failure`
+column; their points take no part in orders and cheapest settings.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .compare import compare
+from .executors import Done, Executor
+from .linkages import build_mechanism
+from .reference import simulate_reference
+from .scenario import Scenario, Tolerance
+from .signals import Signals
+
+REFERENCE = "reference"
+HEADLINE = "force+torque"
+CLASS_ORDER = ("angle", "position", "velocity", "acceleration", "force", "torque", HEADLINE)
+#: Error targets of the cheapest-setting table (relative, or rad / m).
+TARGETS = (1e-2, 1e-3, 1e-4, 1e-6)
+COLUMNS = ["scenario", "engine", "variant", "step_s", "steps_per_sample", "default", "class", "error",
+           "error_kind", "worst_signal", "s_per_sim_s", "s_per_sim_s_min", "s_per_sim_s_max",
+           "vs_reference", "build_s", "engine_s_per_sim_s", "repeats", "failure"]
+
+
+@dataclass(frozen=True)
+class Point:
+    """One setting of one engine on one scenario, timed `repeats` times."""
+
+    scenario: Scenario
+    engine: str
+    variant: str = ""
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    step: float = float("nan")
+    default: bool = False
+    repeats: int = 3
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """A point's signals (first repeat) and per-repeat times (s)."""
+
+    signals: Signals
+    run_s: tuple[float, ...]
+    build_s: tuple[float, ...]
+    engine_s: tuple[float, ...]
+
+
+def measure_point(point: Point) -> Measurement:
+    """Worker body: simulate the point `repeats` times, timing each call."""
+    if point.engine == REFERENCE:
+        simulate: Callable[[Scenario], Signals] = simulate_reference
+    else:
+        from mechval.engines.registry import adapter
+        engine = adapter(point.engine)     # imports the engine before any timing
+        simulate = lambda scenario: engine.simulate(scenario, point.overrides)
+    first, run_s, build_s, engine_s = None, [], [], []
+    for _ in range(point.repeats):
+        start = time.perf_counter()
+        signals = simulate(point.scenario)
+        total = time.perf_counter() - start
+        first = signals if first is None else first
+        build = float(signals.settings.get("build_time_s", 0.0))
+        run_s.append(total - build)
+        build_s.append(build)
+        engine_s.append(float(signals.settings.get("wall_time_s", np.nan)))
+    return Measurement(first, tuple(run_s), tuple(build_s), tuple(engine_s))
+
+
+def nice_count(ratio: float) -> int:
+    """The smallest count in the 1-2-5 series (1, 2, 5, 10, 20, …) ≥ ratio."""
+    decade = 1
+    while True:
+        for m in (1, 2, 5):
+            if m * decade >= ratio - 1e-9:
+                return m * decade
+        decade *= 10
+
+
+def points_for(scenario: Scenario, engine: str, quick: bool = False, repeats: int = 3) -> list[Point]:
+    """The sweep of one engine: its variants × its ladder and default step.
+    Quick: the default variant at the default step and one ~10× coarser."""
+    from mechval.engines.base import step_rate
+    from mechval.engines.registry import adapter
+    adapter_ = adapter(engine)
+    mechanism, times = build_mechanism(scenario), scenario.time.t
+    interval = float(times[1] - times[0])
+    default = float(adapter_.settings_for(scenario, mechanism)[adapter_.step_setting])
+    k_default = max(1, round(interval / default))
+    if quick:
+        coarse = nice_count(k_default / 10)
+        counts = {k_default, coarse if coarse != k_default else nice_count(10 * k_default)}
+        variants = {name: o for name, o in adapter_.cost_variants.items() if not o}
+    else:
+        rate = step_rate(mechanism, times)
+        counts = {nice_count(interval * rate / rad) for rad in adapter_.cost_ladder} | {k_default}
+        variants = adapter_.cost_variants
+    return [Point(scenario, engine, name, {**overrides, adapter_.step_setting: interval / k}, interval / k,
+                  default=not overrides and k == k_default, repeats=repeats)
+            for name, overrides in variants.items() for k in sorted(counts)]
+
+
+def sweep(scenarios: Sequence[Scenario], engines: Iterable[str], executor: Executor, quick: bool = False,
+          repeats: int = 3, on_done: Callable[[Point, Done], None] = lambda point, done: None) -> pd.DataFrame:
+    """The cost table (COLUMNS) of every engine on every scenario, plus one
+    reference row per scenario (its own cost; class and error empty)."""
+    engines = list(engines)
+    points = [Point(s, REFERENCE, "closed form", repeats=repeats) for s in scenarios]
+    engine_points = [p for s in scenarios for e in engines for p in points_for(s, e, quick, repeats)]
+    # Finest steps first: the longest tasks start early and the pool drains evenly.
+    points += sorted(engine_points, key=lambda p: p.step)
+    dones = executor.run(measure_point, points, lambda index, done: on_done(points[index], done))
+    rows = []
+    references: dict[str, tuple[Signals, float]] = {}
+    for point, done in zip(points, dones):
+        if point.engine == REFERENCE:
+            if done.error:
+                raise RuntimeError(f"{point.scenario.name}: the reference failed: {done.error}")
+            seconds = _per_sim_second(point.scenario, done.value.run_s)
+            references[point.scenario.name] = (done.value.signals, seconds)
+            rows.append(dict(_point_columns(point), **_timing(point.scenario, done.value, seconds), failure=""))
+            continue
+        rows += _point_rows(point, done, *references[point.scenario.name])
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def _per_sim_second(scenario: Scenario, seconds: Sequence[float]) -> float:
+    return float(np.median(seconds)) / float(scenario.time.end - scenario.time.t[0])
+
+
+def _point_columns(point: Point) -> dict:
+    interval = float(point.scenario.time.t[1] - point.scenario.time.t[0])
+    return dict(scenario=point.scenario.name, engine=point.engine, variant=point.variant, step_s=point.step,
+                steps_per_sample=round(interval / point.step) if np.isfinite(point.step) else np.nan,
+                default=point.default, repeats=point.repeats)
+
+
+def _timing(scenario: Scenario, m: Measurement, reference_s: float) -> dict:
+    per_s = [_per_sim_second(scenario, [r]) for r in m.run_s]
+    median = _per_sim_second(scenario, m.run_s)
+    return dict(s_per_sim_s=median, s_per_sim_s_min=min(per_s), s_per_sim_s_max=max(per_s),
+                vs_reference=median / reference_s if reference_s > 0 else np.nan,
+                build_s=float(np.median(m.build_s)), engine_s_per_sim_s=_per_sim_second(scenario, m.engine_s))
+
+
+def _point_rows(point: Point, done: Done, reference: Signals, reference_s: float) -> list[dict]:
+    """One row per signal class (and the headline) of one point."""
+    scenario, base = point.scenario, _point_columns(point)
+    tolerance = scenario.tolerance_for(point.engine)
+    classes = [c for c in CLASS_ORDER if c == HEADLINE or c in _classes(reference)]
+    if done.error:
+        return [dict(base, **{"class": c}, error_kind=_kind(tolerance, c), failure=done.error) for c in classes]
+    records = compare(reference, done.value.signals, tolerance, scenario.name, point.engine, point.variant)
+    errors, failure = class_errors(records, tolerance), failure_of(records)
+    timing = _timing(scenario, done.value, reference_s)
+    return [dict(base, **timing, **{"class": c}, error_kind=_kind(tolerance, c), failure=failure,
+                 **errors.get(c, {})) for c in classes]
+
+
+def _classes(signals: Signals) -> set[str]:
+    from .signals import SIGNAL_CLASS
+    return {SIGNAL_CLASS[c] for c in signals.frame.columns if c != "t"}
+
+
+def _kind(tolerance: Tolerance, cls: str) -> str:
+    if cls == HEADLINE or tolerance.is_relative(cls):
+        return "relative"
+    return "absolute (rad)" if cls == "angle" else "absolute (m)"
+
+
+def class_errors(records: pd.DataFrame, tolerance: Tolerance) -> dict[str, dict]:
+    """Per class: the largest error among its signals ({error, worst_signal});
+    non-finite errors are left out (the point's failure says why), as are
+    signals the engine reports as missing with a reason."""
+    signals = records[records["class"] != "health"]
+    relative = signals["class"].map(lambda c: tolerance.is_relative(c)).to_numpy(dtype=bool)
+    value = np.where(relative, signals["relative_error"].to_numpy(dtype=float),
+                     signals["max_error"].to_numpy(dtype=float))
+    signals = signals.assign(value=value)
+    signals = signals[np.isfinite(signals["value"])]
+    result = {}
+    for cls, group in signals.groupby("class"):
+        worst = group.loc[group["value"].idxmax()]
+        result[cls] = dict(error=float(worst["value"]), worst_signal=worst["signal"])
+    headline = [result[c] for c in ("force", "torque") if c in result]
+    if headline:
+        result[HEADLINE] = max(headline, key=lambda r: r["error"])
+    return result
+
+
+def failure_of(records: pd.DataFrame) -> str:
+    """Why a point's results are unusable ("" if they are usable): values
+    that are NaN or inf without a reason, or an assembly-branch flip."""
+    problems = []
+    signals = records[records["class"] != "health"]
+    nonfinite = signals[(signals["max_error"] == np.inf) | (signals["reason"] == "no finite value")]
+    health = records.set_index("signal")["max_error"]
+    if len(nonfinite) or health.get("health.nonfinite", 0) > 0:
+        names = ", ".join(nonfinite["signal"]) or "raw columns"
+        problems.append(f"non-finite values ({names})")
+    if health.get("health.assembly_flip", 0) > 0:
+        problems.append("assembly branch flip")
+    return "; ".join(problems)

@@ -1,0 +1,99 @@
+"""One interface for running independent tasks: a local process pool or a
+Dask distributed cluster.
+
+`Executor.run(fn, items, on_done)` calls fn(item) for every item, somewhere
+else, and returns one `Done` per item in the items' order: the value, or the
+reason there is none (the exception, a crashed worker, a timeout) as text,
+so a failing task is data and never stops the others. The local pool is
+pebble's (as `mechval.runner`): a task that hangs past the timeout is
+killed, a worker that crashes is replaced. On Dask, fn and its arguments
+travel pickled to the cluster's workers, which must have mechval installed;
+a running Dask task cannot be killed, so the timeout there only stops
+waiting for it.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import TimeoutError as FutureTimeout
+from dataclasses import dataclass
+from typing import Any, Callable, Protocol, Sequence
+
+from pebble import ProcessExpired, ProcessPool
+
+
+@dataclass(frozen=True)
+class Done:
+    """The outcome of one task: its value, or why there is none."""
+
+    value: Any = None
+    error: str = ""
+
+
+def _describe(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {exc}"
+
+
+class Executor(Protocol):
+    def run(self, fn: Callable[[Any], Any], items: Sequence[Any],
+            on_done: Callable[[int, Done], None] = lambda index, done: None) -> list[Done]:
+        """fn(item) for every item; on_done(index, done) as each finishes."""
+
+
+class LocalExecutor:
+    """Worker processes on this machine (pebble), reused between tasks."""
+
+    def __init__(self, workers: int, timeout: float):
+        self.workers, self.timeout = workers, timeout
+
+    def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
+        results: list[Done] = []
+        with ProcessPool(max_workers=self.workers) as pool:
+            futures = [pool.schedule(fn, args=(item,), timeout=self.timeout) for item in items]
+            for index, future in enumerate(futures):
+                try:
+                    done = Done(future.result())
+                except FutureTimeout:
+                    done = Done(error=f"timed out after {self.timeout:g} s (worker killed)")
+                except ProcessExpired as exc:
+                    done = Done(error=f"worker crashed (exit code {exc.exitcode})")
+                except Exception as exc:  # the task's own error, reported as data
+                    done = Done(error=_describe(exc))
+                results.append(done)
+                on_done(index, done)
+        return results
+
+
+class DaskExecutor:
+    """The workers of a running Dask distributed scheduler at `address`.
+
+    For meaningful timings each worker should run one task at a time
+    (`dask worker ADDRESS --nthreads 1`): tasks sharing a process's cores
+    slow each other down.
+    """
+
+    def __init__(self, address: str, timeout: float):
+        self.address, self.timeout = address, timeout
+
+    def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
+        from distributed import Client, as_completed
+        results: list[Done | None] = [None] * len(items)
+        with Client(self.address) as client:
+            # pure=False: equal items (repeated timings) must each run.
+            futures = [client.submit(fn, item, pure=False) for item in items]
+            index_of = {future.key: index for index, future in enumerate(futures)}
+            try:
+                for future in as_completed(futures, timeout=self.timeout * max(1, len(items))):
+                    exc = future.exception()
+                    done = Done(error=_describe(exc)) if exc else Done(future.result())
+                    results[index_of[future.key]] = done
+                    on_done(index_of[future.key], done)
+            except FutureTimeout:
+                pass            # the tasks still running are reported below
+            finally:
+                client.cancel([f for f in futures if not f.done()])
+        return [done or Done(error="timed out on the Dask cluster") for done in results]
+
+
+def executor_for(dask_address: str | None, workers: int, timeout: float) -> Executor:
+    """The Dask cluster at `dask_address` if given, else a local pool."""
+    return DaskExecutor(dask_address, timeout) if dask_address else LocalExecutor(workers, timeout)

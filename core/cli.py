@@ -71,29 +71,66 @@ def _engines(names: list[str] | None) -> list[str]:
     return engines
 
 
-def _scenarios(names: list[str] | None, include_hard: bool):
+def _scenarios(names: list[str] | None, skip_hard: bool):
     from mechval.scenarios import builtin_names
     if names:
         return [_load(n) for n in names]
     loaded = [_load(n) for n in builtin_names()]
-    return [s for s in loaded if include_hard or "hard" not in s.tags]
+    return [s for s in loaded if not (skip_hard and "hard" in s.tags)]
 
 
-def default_out_dir() -> Path:
+def default_out_dir(kind: str = "run") -> Path:
     import datetime
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    return Path("reports") / "out" / f"run-{stamp}"
+    return Path("reports") / "out" / f"{kind}-{stamp}"
+
+
+def _workers(args) -> int:
+    import os
+    return args.workers or os.cpu_count() or 1
+
+
+def _cost_sweep(scenarios, engines, executor, quick: bool, repeats: int, quiet: bool):
+    """The cost table, observed orders and cheapest settings (mechval.cost)."""
+    from tqdm import tqdm
+    from .cost import sweep
+    from .cost_tables import cheapest, convergence
+    with tqdm(desc="cost points", unit="point", file=sys.stderr, disable=quiet) as bar:
+        def done(point, outcome):
+            bar.set_postfix_str(f"{point.engine} {point.variant} dt {point.step:.3g}"
+                                + (" FAILED" if outcome.error else ""), refresh=False)
+            bar.update()
+        table = sweep(scenarios, engines, executor, quick=quick, repeats=repeats, on_done=done)
+    return table, convergence(table), cheapest(table)
+
+
+def cmd_cost(args) -> int:
+    from mechval.reports.cost_report import write_cost_report
+    from .cost_tables import format_tables
+    from .executors import executor_for
+    if args.repeats < 1:
+        raise UsageError("--repeats must be at least 1")
+    scenarios = [_load(name) for name in args.scenarios]
+    engines = _engines(args.engine)
+    out = args.out or default_out_dir("cost")
+    if out.exists():
+        raise UsageError(f"{out} exists; choose another --out or remove it")
+    table, orders, cheap = _cost_sweep(scenarios, engines, executor_for(args.dask, _workers(args), args.timeout),
+                                       args.quick, args.repeats, args.quiet)
+    write_cost_report(out, table, orders, cheap)
+    print(format_tables(table, orders, cheap))
+    print(f"report: {out / 'index.html'}")
+    return 0
 
 
 def cmd_run(args) -> int:
-    import os
     from tqdm import tqdm
     from mechval.reports.build import summary_markdown, write_report, provenance
     from mechval.reports.stability import stability_section
     from .compare import passed
     from .runner import discrepancies, references_for, run_tasks, tasks_for
 
-    scenarios = _scenarios(args.scenarios, args.hard)
+    scenarios = _scenarios(args.scenarios, args.skip_hard)
     engines = _engines(args.engine)
     out = args.out or default_out_dir()
     if out.exists():
@@ -105,14 +142,33 @@ def cmd_run(args) -> int:
         def done(outcome):
             bar.set_postfix_str(outcome.task.label + (" FAILED" if outcome.error else ""), refresh=False)
             bar.update()
-        outcomes = run_tasks(tasks, workers=args.workers or os.cpu_count() or 1, timeout=args.timeout,
+        outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout,
                              on_done=done)
     records = discrepancies(outcomes, references)
     sections = [s for s in (stability_section(records, scenarios),) if s]
+    if args.cost:
+        from mechval.reports.cost_report import cost_section
+        from .executors import LocalExecutor
+        table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
+                                           quick=False, repeats=3, quiet=args.quiet)
+        sections.append(cost_section(table, orders, cheap))
     write_report(out, scenarios, references, outcomes, records, sections)
+    if args.cost:
+        from mechval.reports.cost_report import write_table
+        write_table(table, out / "cost.csv")
     print(summary_markdown(records, scenarios, provenance()))
     print(f"report: {out / 'index.html'}")
     return 0 if passed(records) else 1
+
+
+def cmd_baseline(args) -> int:
+    from .baseline_run import check_command, parse_signal_rtol, save_command
+    scenarios = _scenarios(args.scenarios, skip_hard=True)
+    engines = _engines(args.engine)
+    if args.action == "save":
+        return save_command(scenarios, engines, args.dir, args.force, _workers(args))
+    return check_command(scenarios, engines, args.dir, args.rtol, parse_signal_rtol(args.signal_rtol),
+                         _workers(args))
 
 
 def cmd_analyse(args) -> int:
@@ -136,9 +192,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
     p.add_argument("--workers", type=int, default=0, help="worker processes (default: one per core)")
     p.add_argument("--timeout", type=float, default=900.0, help="seconds before an engine run is killed")
-    p.add_argument("--hard", action="store_true", help="include the built-in scenarios tagged 'hard'")
+    p.add_argument("--skip-hard", action="store_true",
+                   help="leave out the built-in scenarios tagged 'hard' (long runs, singular neighbourhoods)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--cost", action="store_true", help="add the work-precision sweep (as `mechval cost`; slow)")
     p.set_defaults(func=cmd_run)
+    p = sub.add_parser("cost", help="work-precision sweep: error against wall time per engine setting")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="built-in names or .toml paths")
+    p.add_argument("--engine", action="append", help="engine to sweep (repeatable; default: all installed)")
+    p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
+    p.add_argument("--dask", metavar="ADDRESS", help="run the points on this Dask scheduler instead of locally")
+    p.add_argument("--repeats", type=int, default=3, help="timed runs per point (median; default 3)")
+    p.add_argument("--quick", action="store_true", help="two points per engine: the default step and ~10x coarser")
+    p.add_argument("--workers", type=int, default=0, help="local worker processes (default: one per core)")
+    p.add_argument("--timeout", type=float, default=900.0, help="seconds before a point is given up")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_cost)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("scenarios", nargs="*", metavar="SCENARIO",
+                        help="built-in names or .toml paths (default: all not tagged 'hard')")
+    common.add_argument("--engine", action="append", help="engine (repeatable; default: all installed)")
+    common.add_argument("--dir", required=True, type=Path, help="baseline folder, e.g. baselines/")
+    common.add_argument("--workers", type=int, default=0, help="worker processes (default: one per core)")
+    p = sub.add_parser("baseline", help="engine regression checks against stored signals per engine version")
+    actions = p.add_subparsers(dest="action", required=True)
+    q = actions.add_parser("save", parents=[common], help="store baselines (never overwrites without --force)")
+    q.add_argument("--force", action="store_true", help="overwrite existing baselines")
+    q = actions.add_parser("check", parents=[common], help="re-run and compare with the stored baselines")
+    q.add_argument("--rtol", type=float, help="max |change| / peak of a signal (default 1e-9)")
+    q.add_argument("--signal-rtol", action="append", metavar="NAME=R", help="per-signal rtol (repeatable)")
+    p.set_defaults(func=cmd_baseline)
     p = sub.add_parser("analyse", help="engineering analysis: Grashof, transmission angle, toggles")
     p.add_argument("scenario")
     p.set_defaults(func=cmd_analyse)

@@ -37,14 +37,14 @@ from .executors import Done, Executor
 from .linkages import build_mechanism
 from .reference import simulate_reference
 from .scenario import Scenario, Tolerance
-from .signals import Signals
+from .signals import SIGNAL_CLASS, Signals
 
 REFERENCE = "reference"
 HEADLINE = "force+torque"
 CLASS_ORDER = ("angle", "position", "velocity", "acceleration", "force", "torque", HEADLINE)
 #: Error targets of the cheapest-setting table (relative, or rad / m).
 TARGETS = (1e-2, 1e-3, 1e-4, 1e-6)
-COLUMNS = ["scenario", "engine", "variant", "step_s", "steps_per_sample", "default", "class", "error",
+COLUMNS = ["scenario", "engine", "version", "variant", "step_s", "steps_per_sample", "default", "class", "error",
            "error_kind", "worst_signal", "s_per_sim_s", "s_per_sim_s_min", "s_per_sim_s_max",
            "vs_reference", "build_s", "engine_s_per_sim_s", "repeats", "failure"]
 
@@ -104,8 +104,9 @@ def nice_count(ratio: float) -> int:
 
 
 def points_for(scenario: Scenario, engine: str, quick: bool = False, repeats: int = 3) -> list[Point]:
-    """The sweep of one engine: its variants × its ladder and default step.
-    Quick: the default variant at the default step and one ~10× coarser."""
+    """The sweep of one engine: its variants × its ladder and default step
+    (the adapter's step for the scenario, as interval / k). Quick: the
+    default variant at the default step and one ~10× coarser."""
     from mechval.engines.base import step_rate
     from mechval.engines.registry import adapter
     adapter_ = adapter(engine)
@@ -132,10 +133,15 @@ def sweep(scenarios: Sequence[Scenario], engines: Iterable[str], executor: Execu
     reference row per scenario (its own cost; class and error empty)."""
     engines = list(engines)
     points = [Point(s, REFERENCE, "closed form", repeats=repeats) for s in scenarios]
-    engine_points = [p for s in scenarios for e in engines for p in points_for(s, e, quick, repeats)]
-    # Finest steps first: the longest tasks start early and the pool drains evenly.
-    points += sorted(engine_points, key=lambda p: p.step)
-    dones = executor.run(measure_point, points, lambda index, done: on_done(points[index], done))
+    points += [p for s in scenarios for e in engines for p in points_for(s, e, quick, repeats)]
+    # Finest steps first: the longest tasks start early and the pool drains
+    # evenly. The table keeps the points' own order.
+    order = sorted(range(len(points)), key=lambda k: (points[k].engine != REFERENCE, points[k].step))
+    ran = executor.run(measure_point, [points[k] for k in order],
+                       lambda index, done: on_done(points[order[index]], done))
+    dones: list[Done] = [Done()] * len(points)
+    for k, done in zip(order, ran):
+        dones[k] = done
     rows = []
     references: dict[str, tuple[Signals, float]] = {}
     for point, done in zip(points, dones):
@@ -144,7 +150,8 @@ def sweep(scenarios: Sequence[Scenario], engines: Iterable[str], executor: Execu
                 raise RuntimeError(f"{point.scenario.name}: the reference failed: {done.error}")
             seconds = _per_sim_second(point.scenario, done.value.run_s)
             references[point.scenario.name] = (done.value.signals, seconds)
-            rows.append(dict(_point_columns(point), **_timing(point.scenario, done.value, seconds), failure=""))
+            rows.append(dict(_point_columns(point), version=done.value.signals.version,
+                             **_timing(point.scenario, done.value, seconds), failure=""))
             continue
         rows += _point_rows(point, done, *references[point.scenario.name])
     return pd.DataFrame(rows, columns=COLUMNS)
@@ -179,12 +186,11 @@ def _point_rows(point: Point, done: Done, reference: Signals, reference_s: float
     records = compare(reference, done.value.signals, tolerance, scenario.name, point.engine, point.variant)
     errors, failure = class_errors(records, tolerance), failure_of(records)
     timing = _timing(scenario, done.value, reference_s)
-    return [dict(base, **timing, **{"class": c}, error_kind=_kind(tolerance, c), failure=failure,
-                 **errors.get(c, {})) for c in classes]
+    return [dict(base, version=done.value.signals.version, **timing, **{"class": c},
+                 error_kind=_kind(tolerance, c), failure=failure, **errors.get(c, {})) for c in classes]
 
 
 def _classes(signals: Signals) -> set[str]:
-    from .signals import SIGNAL_CLASS
     return {SIGNAL_CLASS[c] for c in signals.frame.columns if c != "t"}
 
 

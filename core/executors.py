@@ -68,7 +68,8 @@ class DaskExecutor:
 
     For meaningful timings each worker should run one task at a time
     (`dask worker ADDRESS --nthreads 1`): tasks sharing a process's cores
-    slow each other down.
+    slow each other down. The timeout bounds the whole batch (timeout ×
+    number of tasks); tasks unfinished by then are cancelled and reported.
     """
 
     def __init__(self, address: str, timeout: float):

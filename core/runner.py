@@ -54,12 +54,19 @@ def simulate_task(task: Task) -> tuple[Signals, float]:
 
 
 def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Task]:
-    """One task per scenario × engine × the engine's reported variants."""
+    """One task per scenario × engine × the engine's reported variants.
+
+    Hard scenarios run at each engine's default setting only: they test
+    stability, and the accuracy variants would multiply their long runs.
+    """
     from mechval.engines.registry import adapter_class
     tasks = []
     for scenario in scenarios:
         for engine in engines:
-            for setting, overrides in adapter_class(engine).variants.items():
+            variants = adapter_class(engine).variants
+            if "hard" in scenario.tags:
+                variants = {"default": variants["default"]}
+            for setting, overrides in variants.items():
                 tasks.append(Task(scenario, engine, setting, dict(overrides)))
     return tasks
 

@@ -28,6 +28,9 @@ TOP_KEYS = {"name", "mechanism", "description", "tags", "geometry", "mass", "dri
 REQUIRED_TABLES = ("geometry", "mass", "drive", "time")
 BRANCHES = {"fourbar": ("open", "crossed"), "slider_crank": ("right", "left"),
             "inverted_slider": ("left", "right")}
+#: Largest magnitude accepted for any number (SI units): far beyond any
+#: linkage, small enough that products like m·L²·ω² stay within float64.
+MAX_MAGNITUDE = 1e50
 #: The ground may be given a mass (as in the published four-bar study); it
 #: does not move, so the value is checked and otherwise has no effect.
 IGNORED_MASS_KEYS = {"ground"}
@@ -84,6 +87,9 @@ class _Reader:
             self.fail(name, f"expected a number, got {type(value).__name__} {value!r}")
         if not math.isfinite(value):
             self.fail(name, f"must be finite, got {value}")
+        if abs(value) > MAX_MAGNITUDE:
+            self.fail(name, f"magnitude {value:g} exceeds {MAX_MAGNITUDE:g}: the reference squares and "
+                            "multiplies such values beyond float64")
         if positive and value <= 0:
             self.fail(name, f"must be positive, got {value}")
         if nonnegative and value < 0:

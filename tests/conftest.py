@@ -67,8 +67,7 @@ def pytest_sessionfinish(session, exitstatus):
     from mechval.reports.stability import stability_section
     outcomes = [o for o, _ in COMPARISONS]
     scenarios = list({o.task.scenario.name: o.task.scenario for o in outcomes}.values())
-    references = {s.name: builtin_reference(s.name) if s.source and s.source.stem == s.name
-                  else simulate_reference(s) for s in scenarios}
+    references = {s.name: simulate_reference(s) for s in scenarios}
     records = pd.concat([r for _, r in COMPARISONS], ignore_index=True)
     sections = [s for s in (stability_section(records, scenarios),) if s]
     path = write_report(Path(out), scenarios, references, outcomes, records, sections)

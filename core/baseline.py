@@ -1,0 +1,222 @@
+"""Engine regression baselines: stored signals per engine version, and the
+one rule that compares a new run with them.
+
+A baseline is what one engine version produced on one scenario at one
+setting (the adapter's `variants` name), stored as
+
+    DIR/<engine>/<version>/<scenario>/<setting>.csv    canonical signals, %.17g
+    DIR/<engine>/<version>/<scenario>/<setting>.json   where they came from
+
+The regression rule is much tighter than the accuracy tolerances: an engine
+is deterministic on one machine (bit-identical across runs, processes and
+thread counts, as measured for the committed baselines), so any change beyond
+rounding means the engine, its settings or the scenario changed.
+`compare_to_baseline` returns the verdict per signal as data; the CLI and
+pytest both print and judge from it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+from packaging.version import InvalidVersion, Version
+
+from .compare import compare
+from .scenario import Scenario, Tolerance
+from .signals import SIGNAL_CLASS, Signals, write_atomically
+
+#: Default regression threshold: max |new − stored| ≤ RTOL · peak, with peak
+#: the stored signal's max |value| over the run. Measured on the committed
+#: baselines: reruns are bit-identical (other process, 1 or 2 workers, one
+#: BLAS/OpenMP thread, 4 Python threads in one process). A CI machine of the
+#: same kind could differ in the last bits (another libm or CPU dispatch;
+#: not measured, there is no second machine here): 1 ulp (2e-16) grown over
+#: a few thousand steps stays far below 1e-9, while MuJoCo 3.3.7 → 4.0.0
+#: moves the signals by 2e-3..6e-2 of their peak.
+DEFAULT_RTOL = 1e-9
+#: Absolute floor of the threshold (SI units). A signal that is identically
+#: zero in theory (α2 of a crank at constant speed) comes out as 0 (Exudyn)
+#: or as integration residue of 1e-7..1e-6 rad/s² (PyBullet, MuJoCo); its
+#: own peak is no scale for it, and 1e-9 of it (1e-16) would flag a change in
+#: the residue's last bits. 1e-12 is above the last bits of the quantities
+#: it derives from (1 ulp of an acceleration of 50 rad/s² is 7e-15) and far
+#: below a physical change.
+ABSOLUTE_FLOOR = 1e-12
+#: Accuracy against the reference counts as unchanged while the old and new
+#: max relative errors differ by less than this fraction of the old one; a
+#: smaller shift of an error says nothing about accuracy (halving the step
+#: moves it by a factor of 2 to 16).
+ACCURACY_CHANGE = 1e-3
+
+COLUMNS = ["signal", "class", "max_abs_diff", "t_max", "peak", "relative", "rtol", "threshold",
+           "verdict", "reason"]
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """One stored baseline: its signals and its metadata (the JSON file)."""
+
+    path: Path                  # the .csv file
+    signals: Signals
+    meta: Mapping[str, Any]
+
+
+def baseline_path(root: Path, engine: str, version: str, scenario: str, setting: str) -> Path:
+    return Path(root) / engine / version / scenario / f"{setting}.csv"
+
+
+def scenario_hash(scenario: Scenario, engine: str) -> str:
+    """sha256 of what determines an engine's signals: the scenario's physics,
+    drive, samples and this engine's settings table. Name, description, tags,
+    tolerances, comments and the file's path are left out, so that a reworded
+    scene or a new tolerance is not reported as a changed scenario."""
+    content = asdict(scenario)
+    for key in ("name", "description", "tags", "tolerance", "source", "engines"):
+        del content[key]
+    content["engine_settings"] = scenario.settings_for(engine)
+    text = json.dumps(content, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def metadata(scenario: Scenario, setting: str, overrides: Mapping[str, Any], signals: Signals,
+             setting_keys: set[str], provenance: Mapping[str, str]) -> dict[str, Any]:
+    """The JSON record of a run: engine, version, settings (the resolved
+    inputs, keys `setting_keys`) apart from the run's own facts (steps taken,
+    measured gap, wall time), scenario and its hash, machine and commit."""
+    plain = json.loads(json.dumps(dict(signals.settings), default=repr))
+    return {
+        "engine": signals.source, "version": signals.version, "setting": setting,
+        "overrides": json.loads(json.dumps(dict(overrides), default=repr)),
+        "settings": {k: v for k, v in plain.items() if k in setting_keys},
+        "run_info": {k: v for k, v in plain.items() if k not in setting_keys},
+        "missing": dict(signals.missing),
+        "scenario": scenario.name, "scenario_hash": scenario_hash(scenario, signals.source),
+        "samples": len(signals.frame), "provenance": dict(provenance),
+    }
+
+
+def save(path: Path, signals: Signals, meta: Mapping[str, Any]) -> None:
+    """Write the CSV and JSON (each atomically). Refusing to overwrite is
+    the caller's decision, made before anything runs."""
+    signals.to_csv(path)
+    write_atomically(path.with_suffix(".json"),
+                     lambda f: f.write(json.dumps(meta, indent=2, sort_keys=True) + "\n"))
+
+
+def load(path: Path) -> Baseline:
+    meta = json.loads(Path(path).with_suffix(".json").read_text(encoding="utf-8"))
+    # pandas ≥ 3 parses %.17g text exactly (tests/test_baselines.py checks it).
+    frame = pd.read_csv(path)
+    return Baseline(Path(path), Signals(frame, meta["engine"], meta["version"], meta["settings"],
+                                        meta["missing"]), meta)
+
+
+def _version_key(version: str) -> tuple:
+    try:
+        return (1, Version(version))
+    except InvalidVersion:      # a hand-made key: after every real release
+        return (2, version)
+
+
+def stored_versions(root: Path, engine: str, scenario: str, setting: str) -> list[str]:
+    """Versions of `engine` that have this baseline, oldest first."""
+    found = [p.parent.parent.name for p in (Path(root) / engine).glob(f"*/{scenario}/{setting}.csv")]
+    return sorted(found, key=_version_key)
+
+
+def find(root: Path, engine: str, version: str, scenario: str, setting: str) -> Baseline | None:
+    """The baseline of the same engine version if stored, else of the newest
+    stored version of that engine, else None."""
+    versions = stored_versions(root, engine, scenario, setting)
+    if not versions:
+        return None
+    chosen = version if version in versions else versions[-1]
+    return load(baseline_path(root, engine, chosen, scenario, setting))
+
+
+def compare_to_baseline(stored: Signals, new: Signals, rtol: float = DEFAULT_RTOL,
+                        signal_rtol: Mapping[str, float] | None = None) -> pd.DataFrame:
+    """One row per signal (t included): max |new − stored|, where (t), its
+    ratio to the stored peak, the threshold max(rtol·peak, ABSOLUTE_FLOOR)
+    and the verdict "identical", "within" or "regression". A signal added or
+    removed, a changed number of samples or a changed set of missing values
+    is a regression."""
+    signal_rtol = dict(signal_rtol or {})
+    if len(stored.frame) != len(new.frame):
+        reason = f"{len(stored.frame)} samples stored, {len(new.frame)} now"
+        return pd.DataFrame([dict(signal="(samples)", verdict="regression", reason=reason)], columns=COLUMNS)
+    t = stored.t
+    rows = []
+    for name in dict.fromkeys([*stored.frame.columns, *new.frame.columns]):
+        r = signal_rtol.get(name, rtol)
+        row = dict(signal=name, **{"class": SIGNAL_CLASS.get(name, "time")}, rtol=r, reason="")
+        if name not in new.frame or name not in stored.frame:
+            rows.append(dict(row, verdict="regression",
+                             reason="signal removed" if name not in new.frame else "signal added"))
+            continue
+        old, now = stored[name].astype(float), new[name].astype(float)
+        peak = float(np.nanmax(np.abs(old))) if np.isfinite(old).any() else 0.0
+        threshold = max(r * peak, ABSOLUTE_FLOOR)
+        row.update(peak=peak, threshold=threshold)
+        gaps = np.isnan(old) != np.isnan(now)
+        if gaps.any():
+            rows.append(dict(row, verdict="regression", t_max=float(t[gaps][0]),
+                             reason=f"missing values changed at {int(gaps.sum())} sample(s)"))
+            continue
+        diff = np.abs(np.where(np.isnan(old), 0.0, now - old))
+        worst = int(np.argmax(diff))
+        largest = float(diff[worst])
+        row.update(max_abs_diff=largest, t_max=float(t[worst]), relative=largest / peak if peak else np.nan)
+        verdict = "identical" if largest == 0 else "within" if largest <= threshold else "regression"
+        if not np.isfinite(largest):    # inf or NaN where the baseline had a value
+            verdict, row["reason"] = "regression", "non-finite value"
+        rows.append(dict(row, verdict=verdict))
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def regressed(rows: pd.DataFrame) -> bool:
+    return bool((rows["verdict"] == "regression").any())
+
+
+def context_changes(meta: Mapping[str, Any], new: Mapping[str, Any]) -> list[str]:
+    """What differs between the stored and the new run besides the signals:
+    engine version, each setting (old → new), the scenario's content."""
+    changes = []
+    if meta["version"] != new["version"]:
+        changes.append(f"engine version differs: baseline {meta['engine']} {meta['version']}, "
+                       f"now {new['version']}")
+    old, now = meta["settings"], new["settings"]
+    for key in sorted(set(old) | set(now)):
+        if old.get(key, "(absent)") != now.get(key, "(absent)"):
+            changes.append(f"setting {key}: {old.get(key, '(absent)')} → {now.get(key, '(absent)')}")
+    if meta["scenario_hash"] != new["scenario_hash"]:
+        changes.append(f"scenario content changed (hash {meta['scenario_hash']} → {new['scenario_hash']})")
+    return changes
+
+
+def accuracy_change(reference: Signals, stored: Signals, new: Signals, tolerance: Tolerance) -> pd.DataFrame:
+    """Per signal class, the max relative error (max |error| / peak, as in
+    `mechval.compare`) against the reference of the stored and the new
+    signals, and whether accuracy improved, worsened or is unchanged ("n/a"
+    where one of them cannot be compared, e.g. the samples changed)."""
+    table = pd.DataFrame({"old": _class_errors(reference, stored, tolerance),
+                          "new": _class_errors(reference, new, tolerance)}).rename_axis("class").reset_index()
+    old, now = table["old"], table["new"]
+    table["verdict"] = np.select([old.isna() | now.isna(), (now - old).abs() <= ACCURACY_CHANGE * old, now < old],
+                                 ["n/a", "unchanged", "improved"], default="worsened")
+    return table
+
+
+def _class_errors(reference: Signals, signals: Signals, tolerance: Tolerance) -> pd.Series:
+    try:
+        records = compare(reference, signals, tolerance)
+    except ValueError:          # other sample instants than the reference's
+        return pd.Series(dtype=float)
+    records = records[records["class"] != "health"]
+    return records.groupby("class", sort=False)["relative_error"].max()

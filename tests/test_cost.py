@@ -1,0 +1,172 @@
+"""`mechval cost`: the ladder, failures as data, the convergence and
+cheapest-setting rules, the report, and identical errors from the local
+pool and a Dask cluster. The full sweep of fourbar-seed is marked slow."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from fake_engines import FAKES
+from mechval.cli import main
+from mechval.cost import HEADLINE, REFERENCE, nice_count, points_for, sweep
+from mechval.cost_tables import asymptotic_range, cheapest, convergence
+from mechval.engines import registry
+from mechval.executors import LocalExecutor
+from mechval.reports import build
+from mechval.reports.cost_report import cost_section
+from mechval.scenarios import builtin_path, load
+
+ENGINES = [name for name, reason in registry.availability().items() if not reason]
+#: Columns that must not depend on where a point ran (times naturally do).
+RESULT_COLUMNS = ["scenario", "engine", "variant", "step_s", "default", "class", "error", "worst_signal", "failure"]
+
+
+@pytest.fixture(scope="module")
+def short_toml(tmp_path_factory):
+    """fourbar-seed cut to 0.5 s (51 samples, interval 10 ms) as a file."""
+    text = builtin_path("fourbar-seed").read_text(encoding="utf-8")
+    text = text.replace('name = "fourbar-seed"', 'name = "short-fourbar"').replace("end = 6.0", "end = 0.5")
+    path = tmp_path_factory.mktemp("scene") / "short.toml"
+    path.write_text(text.replace("samples = 601", "samples = 51"), encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def local_table(short_toml):
+    if not ENGINES:
+        pytest.skip("no engine installed")
+    return sweep([load(str(short_toml))], ENGINES, LocalExecutor(workers=2, timeout=300.0), quick=True)
+
+
+def test_nice_count_is_the_next_1_2_5_count():
+    assert [nice_count(r) for r in (0.3, 1, 1.2, 2, 4.5, 9, 18, 45, 90)] == [1, 1, 2, 2, 5, 10, 20, 50, 100]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_ladder_spans_two_decades_of_steps_dividing_the_interval(engine):
+    scenario = load("fourbar-seed")
+    points = points_for(scenario, engine)
+    interval = scenario.time.t[1] - scenario.time.t[0]
+    steps = sorted({p.step for p in points})
+    assert steps[-1] / steps[0] >= 100 - 1e-9
+    for step in steps:       # each a whole number of steps per sample interval
+        assert abs(interval / step - round(interval / step)) < 1e-9
+    assert sum(p.default for p in points) == 1
+    cls = registry.adapter_class(engine)
+    assert {p.variant for p in points} == set(cls.cost_variants)
+    assert all(p.overrides[cls.step_setting] == p.step for p in points)
+
+
+def test_quick_sweep_gives_two_points_per_engine(local_table):
+    table = local_table
+    headline = table[table["class"] == HEADLINE]
+    assert set(headline["engine"]) == set(ENGINES)
+    assert headline.groupby("engine").size().eq(2).all()
+    assert headline.groupby("engine")["default"].sum().eq(1).all()
+    assert (headline["failure"] == "").all(), headline[headline["failure"] != ""]
+    # Every default setting meets the default force tolerance (1e-2), the
+    # time is positive and compared with the reference's own.
+    assert (headline.loc[headline["default"], "error"] < 1e-2).all()
+    assert (headline["s_per_sim_s"] > 0).all() and (headline["vs_reference"] > 0).all()
+    reference = table[table["engine"] == REFERENCE]
+    assert len(reference) == 1 and reference["s_per_sim_s"].iloc[0] > 0
+    classes = set(table.loc[table["engine"] != REFERENCE, "class"])
+    assert classes == {"angle", "velocity", "acceleration", "force", "torque", HEADLINE}
+
+
+def test_dask_cluster_gives_identical_errors(local_table, short_toml, tmp_path, capsys):
+    from distributed import LocalCluster
+    out = tmp_path / "cost"
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        status = main(["cost", str(short_toml), "--quick", "--dask", cluster.scheduler_address, "--out", str(out),
+                       "--quiet"])
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "Cheapest setting reaching a force+torque error" in printed and "index.html" in printed
+    assert sorted(p.name for p in out.iterdir()) == ["cheapest.csv", "convergence.csv", "cost.csv", "index.html",
+                                                     "work-precision-short-fourbar.png"]
+    csv_text = (out / "cost.csv").read_text()
+    assert "nan" not in csv_text.lower() and "inf" not in csv_text.lower()
+    remote = pd.read_csv(out / "cost.csv", keep_default_na=False, na_values={"step_s": [""], "error": [""]})
+    engine_rows = lambda t: t.loc[t["engine"] != REFERENCE, RESULT_COLUMNS].reset_index(drop=True)
+    # %.17g round-trips float64, so "identical" means equal to the last bit.
+    pd.testing.assert_frame_equal(engine_rows(remote), engine_rows(local_table), check_dtype=False,
+                                  check_exact=True)
+    assert 'src="data:image/png;base64,' in (out / "index.html").read_text()
+
+
+def test_failures_are_data(monkeypatch, short_toml):
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    engines = ["faithful", "raising", "nonfinite", "crashing"]
+    table = sweep([load(str(short_toml))], engines, LocalExecutor(workers=2, timeout=60.0), quick=True, repeats=1)
+    headline = table[table["class"] == HEADLINE].groupby("engine")["failure"].first()
+    assert headline["faithful"] == ""
+    assert "solver diverged" in headline["raising"]
+    assert "non-finite" in headline["nonfinite"]
+    assert "crashed" in headline["crashing"]
+    # A failed point has no error and no time; it never counts as reaching a target.
+    failed = table[table["engine"].isin(["raising", "crashing"])]
+    assert failed["error"].isna().all() and failed["s_per_sim_s"].isna().all()
+    assert set(cheapest(table)["engine"]) == {"faithful"}
+
+
+def test_order_is_fitted_over_the_asymptotic_range_only():
+    steps = np.array([1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2])
+    # O(h²) with a floor at 1e-4 (fine end) and saturation at the coarsest step.
+    errors = np.maximum(1e3 * steps**2, 1e-4)
+    errors[-1] = errors[-2] * 1.5
+    used = asymptotic_range(steps, errors)
+    assert list(steps[used]) == [5e-4, 1e-3, 2e-3, 5e-3]
+    table = pd.DataFrame(dict(scenario="s", engine="e", variant="v", **{"class": "force"}, step_s=steps,
+                              error=errors, failure=""))
+    orders = convergence(table)
+    assert orders["order"].iloc[0] == pytest.approx(2.0, abs=1e-9) and orders["points"].iloc[0] == 4
+    flat = convergence(table.assign(error=1e-6))
+    assert np.isnan(flat["order"].iloc[0]) and flat["points"].iloc[0] == 0
+
+
+def test_cheapest_setting_or_the_best_when_not_reached():
+    table = pd.DataFrame(dict(scenario="s", engine="e", variant=["a", "a", "b"], **{"class": "force"},
+                              step_s=[1e-3, 1e-4, 1e-3], error=[2e-3, 2e-5, 5e-4], s_per_sim_s=[0.1, 1.0, 0.3],
+                              vs_reference=[10.0, 100.0, 30.0], failure=""))
+    cheap = cheapest(table, targets=(1e-2, 1e-3, 1e-6)).set_index("target")
+    assert cheap.loc[1e-2, "variant"] == "a" and cheap.loc[1e-2, "step_s"] == 1e-3
+    assert cheap.loc[1e-3, "variant"] == "b" and cheap.loc[1e-3, "reached"]
+    assert not cheap.loc[1e-6, "reached"] and cheap.loc[1e-6, "error"] == 2e-5
+
+
+def test_cost_section_in_the_run_report(local_table, tmp_path, short_toml):
+    from mechval.reference import simulate_reference
+    scene = load(str(short_toml))
+    section = cost_section(local_table, convergence(local_table), cheapest(local_table))
+    reference = simulate_reference(scene)
+    records = pd.DataFrame(columns=["scenario", "engine", "setting", "signal", "verdict", "ratio"])
+    out = build.write_report(tmp_path / "run", [scene], {scene.name: reference}, [], records, [section])
+    html = (out / "index.html").read_text()
+    assert 'id="cost"' in html and "work-precision diagram of short-fourbar" in html
+
+
+@pytest.mark.slow
+def test_full_sweep_of_fourbar_seed(tmp_path, capsys):
+    """`mechval cost fourbar-seed`: the orders the engines are known for."""
+    assert main(["cost", "fourbar-seed", "--out", str(tmp_path / "cost"), "--quiet"]) == 0
+    orders = pd.read_csv(tmp_path / "cost" / "convergence.csv").set_index(["engine", "variant", "class"])["order"]
+    if "exudyn" in ENGINES:
+        assert orders["exudyn", "index2", "force"] == pytest.approx(2.0, abs=0.2)
+    if "mujoco" in ENGINES:
+        assert orders["mujoco", "Euler", "angle"] == pytest.approx(1.0, abs=0.2)
+    if "pybullet" in ENGINES:     # F14 converges only as O(dt) (ENGINE_NOTES)
+        assert orders["pybullet", "Dantzig", "force"] == pytest.approx(1.0, abs=0.2)
+    assert "not reached" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_run_with_cost_adds_the_section(tmp_path, short_toml):
+    """`mechval run --cost`: the full ladder of one engine in the run report."""
+    engine = ENGINES[0] if ENGINES else pytest.skip("no engine installed")
+    out = tmp_path / "run"
+    main(["run", str(short_toml), "--engine", engine, "--cost", "--out", str(out), "--quiet"])
+    assert 'id="cost"' in (out / "index.html").read_text()
+    assert (out / "cost.csv").exists()

@@ -65,25 +65,26 @@ def _incidence(mech: Mechanism, layout: Layout) -> np.ndarray:
     return C
 
 
-def _body_terms(mech: Mechanism, motion, layout: Layout):
-    """Per instant: force-row right-hand sides (n, 2nb), moment/axial rows
-    (n, k, nu) and their right-hand sides (n, k). `motion` maps raw column
-    names to arrays."""
-    n, nu = len(motion["t"]), len(layout.unknowns)
+def _equations(mech: Mechanism, motion, layout: Layout):
+    """The instant-dependent parts of the system, stored per quantity (arrays
+    over the instants, so that every operation below is contiguous):
+    force-row right-hand sides (2nb, n); the moment and axial rows as sparse
+    maps {unknown column: coefficient (array or number)}; their right-hand
+    sides (k, n). `motion` maps raw column names to arrays."""
+    n = len(motion["t"])
     prismatic = [j for j in mech.joints if j.kind == "prismatic"]
-    k = len(layout.bodies) + len(prismatic)
-    b_force = np.zeros((n, layout.n_force_rows))
-    A_var = np.zeros((n, k, nu))
-    b_var = np.zeros((n, k))
+    b_force = np.zeros((layout.n_force_rows, n))
+    rows: list[dict] = [{} for _ in range(len(layout.bodies) + len(prismatic))]
+    b_var = np.zeros((len(rows), n))
     gx, gy = mech.gravity
     trig = {b.name: (np.cos(motion[f"{b.name}.theta"]), np.sin(motion[f"{b.name}.theta"])) for b in mech.bodies}
     at = lambda body, p: point_motion(motion, body, p, trig.get(body))
     com = {}
     for idx, body in enumerate(mech.bodies):
         G = com[body.name] = at(body.name, body.com)
-        b_force[:, 2 * idx] = body.mass * (G["ax"] - gx)
-        b_force[:, 2 * idx + 1] = body.mass * (G["ay"] - gy)
-        b_var[:, idx] = body.izz * motion[f"{body.name}.alpha"]
+        b_force[2 * idx] = body.mass * (G["ax"] - gx)
+        b_force[2 * idx + 1] = body.mass * (G["ay"] - gy)
+        b_var[idx] = body.izz * motion[f"{body.name}.alpha"]
     row = {b: i for i, b in enumerate(layout.bodies)}
     omega = lambda name: 0.0 if name == GROUND else motion[f"{name}.omega"]
     for joint in mech.joints:
@@ -95,6 +96,7 @@ def _body_terms(mech: Mechanism, motion, layout: Layout):
             ux, uy = rotate(np.asarray(theta_i, dtype=float), joint.axis)
             v_rel = (P["vx"] - P_i["vx"]) * ux + (P["vy"] - P_i["vy"]) * uy
             damper = (-joint.damping * v_rel * ux, -joint.damping * v_rel * uy)
+            rows[len(layout.bodies) + prismatic.index(joint)].update({cx: ux, cy: uy})
         else:
             damper_torque = -joint.damping * (omega(joint.body_j) - omega(joint.body_i))
         for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
@@ -102,26 +104,21 @@ def _body_terms(mech: Mechanism, motion, layout: Layout):
                 continue
             b_idx = row[body]
             rx, ry = P["x"] - com[body]["x"], P["y"] - com[body]["y"]
-            A_var[:, b_idx, cx] = -sign * ry
-            A_var[:, b_idx, cy] = sign * rx
+            rows[b_idx].update({cx: -sign * ry, cy: sign * rx})
             if joint.kind == "prismatic":
-                A_var[:, b_idx, layout.column[f"{joint.name}.M"]] = sign
+                rows[b_idx][layout.column[f"{joint.name}.M"]] = sign
                 # Known damper force: moves to the right-hand side.
                 fx, fy = sign * damper[0], sign * damper[1]
-                b_force[:, 2 * b_idx] -= fx
-                b_force[:, 2 * b_idx + 1] -= fy
-                b_var[:, b_idx] -= rx * fy - ry * fx
+                b_force[2 * b_idx] -= fx
+                b_force[2 * b_idx + 1] -= fy
+                b_var[b_idx] -= rx * fy - ry * fx
             else:
-                b_var[:, b_idx] -= sign * damper_torque
-        if joint.kind == "prismatic":
-            axial = len(layout.bodies) + prismatic.index(joint)
-            A_var[:, axial, cx] = ux
-            A_var[:, axial, cy] = uy
+                b_var[b_idx] -= sign * damper_torque
     drive = mech.joint(mech.drive.joint)
     for body, sign in ((drive.body_j, 1.0), (drive.body_i, -1.0)):
         if body != GROUND:
-            A_var[:, row[body], layout.column[DRIVE_TORQUE]] = sign
-    return b_force, A_var, b_var
+            rows[row[body]][layout.column[DRIVE_TORQUE]] = sign
+    return b_force, rows, b_var
 
 
 def _columns(motion: pd.DataFrame) -> dict[str, np.ndarray]:
@@ -132,34 +129,39 @@ def assemble(mech: Mechanism, motion: pd.DataFrame) -> tuple[np.ndarray, np.ndar
     """The full square system A·x = b per instant: (n, N, N), (n, N), names."""
     layout = Layout.of(mech)
     C = _incidence(mech, layout)
-    b_force, A_var, b_var = _body_terms(mech, _columns(motion), layout)
-    A = np.concatenate([np.broadcast_to(C, (len(motion),) + C.shape), A_var], axis=1)
-    return A, np.concatenate([b_force, b_var], axis=1), layout.unknowns
+    b_force, rows, b_var = _equations(mech, _columns(motion), layout)
+    n = len(motion)
+    A = np.zeros((n, len(layout.unknowns), len(layout.unknowns)))
+    A[:, :len(C)] = C
+    for r, entries in enumerate(rows):
+        for column, coefficient in entries.items():
+            A[:, len(C) + r, column] = coefficient
+    return A, np.concatenate([b_force, b_var]).T, layout.unknowns
 
 
-def _det(M: np.ndarray) -> np.ndarray:
-    """Determinants of a stack of small matrices (n, k, k), by Laplace
-    expansion along the first row, vectorised over the stack."""
-    k = M.shape[-1]
+def _det(M) -> np.ndarray:
+    """Determinants of small matrices stored per entry, M[r][c] an array over
+    instants, by Laplace expansion along the first row."""
+    k = len(M)
     if k == 2:
-        return M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
-    if k == 3:   # rule of Sarrus on views, no copies
-        (a, b, c), (d, e, f), (g, h, i) = (tuple(M[:, r, col] for col in range(3)) for r in range(3))
+        return M[0][0] * M[1][1] - M[0][1] * M[1][0]
+    if k == 3:   # rule of Sarrus
+        (a, b, c), (d, e, f), (g, h, i) = M
         return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-    return sum((-1) ** j * M[:, 0, j] * _det(np.delete(M[:, 1:], j, axis=2)) for j in range(k))
+    return sum((-1) ** j * M[0][j] * _det([[r[c] for c in range(k) if c != j] for r in M[1:]]) for j in range(k))
 
 
 def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve a stack of small systems A[n]·x[n] = b[n] ((n, k, k), (n, k))
-    by Cramer's rule. For the 3×3 and 4×4 reduced systems this is an order
-    of magnitude faster than np.linalg.solve, which calls LAPACK once per
-    matrix; the tests check it against that solve to ~1e-12."""
+    """Solve small systems stored per entry, A (k, k, n) and b (k, n), by
+    Cramer's rule: for the 3×3 and 4×4 reduced systems this is an order of
+    magnitude faster than np.linalg.solve, which calls LAPACK once per
+    instant; the tests check it against that solve to ~1e-12."""
     det = _det(A)
     x = np.empty_like(b)
-    for i in range(A.shape[-1]):
+    for i in range(len(A)):
         Ai = A.copy()
-        Ai[:, :, i] = b
-        x[:, i] = _det(Ai) / det
+        Ai[:, i] = b
+        x[i] = _det(Ai) / det
     return x
 
 
@@ -175,13 +177,16 @@ def reactions(mech: Mechanism, motion: pd.DataFrame, chunk: int = 1 << 17) -> pd
     _, _, vt = np.linalg.svd(C)
     Z = vt[C.shape[0]:].T                           # (nu, k) null-space basis
     columns = _columns(motion)
-    x = np.zeros((len(motion), len(layout.unknowns)))
+    x = np.zeros((len(layout.unknowns), len(motion)))
     for start in range(0, len(motion), chunk):
         part = {name: values[start:start + chunk] for name, values in columns.items()}
-        b_force, A_var, b_var = _body_terms(mech, part, layout)
-        x_p = b_force @ C_pinv.T
-        rhs = b_var - np.einsum("nku,nu->nk", A_var, x_p)
-        # (n, k, nu) @ (nu, k) as one 2-D product: stacked small matmuls are slow.
-        reduced = (A_var.reshape(-1, A_var.shape[-1]) @ Z).reshape(A_var.shape[0], A_var.shape[1], -1)
-        x[start:start + chunk] = x_p + solve_small(reduced, rhs) @ Z.T
-    return pd.DataFrame(x, columns=list(layout.unknowns), index=motion.index)
+        b_force, rows, b_var = _equations(mech, part, layout)
+        x_p = C_pinv @ b_force                        # (nu, n)
+        reduced = np.zeros((len(rows), Z.shape[1], b_force.shape[1]))
+        rhs = b_var
+        for r, entries in enumerate(rows):
+            for column, coefficient in entries.items():
+                reduced[r] += Z[column][:, None] * coefficient
+                rhs[r] -= coefficient * x_p[column]
+        x[:, start:start + chunk] = x_p + Z @ solve_small(reduced, rhs)
+    return pd.DataFrame(x.T, columns=list(layout.unknowns), index=motion.index)

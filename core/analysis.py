@@ -44,7 +44,7 @@ def _cond2(m11, m12, m21, m22) -> np.ndarray:
     frob2 = m11**2 + m12**2 + m21**2 + m22**2
     det = np.abs(m11 * m22 - m12 * m21)
     root = np.sqrt(np.maximum(frob2**2 - 4 * det**2, 0.0))
-    s_max, s_min2 = np.sqrt((frob2 + root) / 2), (frob2 - root) / 2
+    s_max = np.sqrt((frob2 + root) / 2)
     with np.errstate(divide="ignore"):
         return np.where(det > 0, s_max**2 / np.where(det > 0, det, 1.0), np.inf)
 

@@ -186,13 +186,19 @@ def check_closure(g: InvertedSliderGeometry, law: DriveLaw, t: np.ndarray, sourc
         raise ScenarioError(source, f"{key}.rod", f"the rod leaves the sleeve {where}, not less than rod {sizes}")
 
 
-SIGNAL_MAP = {
-    **{f"{q}{n}": f"{link}.{q}" for link, n in zip(LINKS, (2, 3, 4)) for q in ("theta", "omega", "alpha")},
-    "s34": "sleeve.s", "v34": "sleeve.v", "a34": "sleeve.a",
-    "F12x": "O2.Fx", "F12y": "O2.Fy", "F32x": "A.Fx", "F32y": "A.Fy",
-    "F43x": "sleeve.Fx", "F43y": "sleeve.Fy", "N43": "sleeve.N", "M43": "sleeve.M",
-    "F14x": "O4.Fx", "F14y": "O4.Fy", "T12": "drive.T",
-}
+def slide_signal_map(links: tuple[str, str, str], slide: str) -> dict[str, str]:
+    """Canonical signal → raw column for a linkage whose link 3 slides along
+    link 4 at the prismatic joint `slide` (this one and the slotted lever)."""
+    return {
+        **{f"{q}{n}": f"{link}.{q}" for link, n in zip(links, (2, 3, 4)) for q in ("theta", "omega", "alpha")},
+        "s34": f"{slide}.s", "v34": f"{slide}.v", "a34": f"{slide}.a",
+        "F12x": "O2.Fx", "F12y": "O2.Fy", "F32x": "A.Fx", "F32y": "A.Fy",
+        "F43x": f"{slide}.Fx", "F43y": f"{slide}.Fy", "N43": f"{slide}.N", "M43": f"{slide}.M",
+        "F14x": "O4.Fx", "F14y": "O4.Fy", "T12": "drive.T",
+    }
+
+
+SIGNAL_MAP = slide_signal_map(LINKS, "sleeve")
 
 
 def geometry_of(scenario: Scenario) -> InvertedSliderGeometry:

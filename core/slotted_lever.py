@@ -32,7 +32,8 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .inverted_slider import crank_pin, first_instant, frames_table, pivot_reach, slide_loop, stroke_time_ratio
+from .inverted_slider import (crank_pin, first_instant, frames_table, pivot_reach, slide_loop, slide_signal_map,
+                              stroke_time_ratio)
 from .mechanism import GROUND, Body, Drive, Joint, Mechanism
 from .scenario import Scenario, ScenarioError
 
@@ -98,13 +99,7 @@ def check_closure(g: SlottedLeverGeometry, law: DriveLaw, t: np.ndarray, source,
                             f"(ground {r1:.6g}, crank {r2:.6g} m)")
 
 
-SIGNAL_MAP = {
-    **{f"{q}{n}": f"{link}.{q}" for link, n in zip(LINKS, (2, 3, 4)) for q in ("theta", "omega", "alpha")},
-    "s34": "slot.s", "v34": "slot.v", "a34": "slot.a",
-    "F12x": "O2.Fx", "F12y": "O2.Fy", "F32x": "A.Fx", "F32y": "A.Fy",
-    "F43x": "slot.Fx", "F43y": "slot.Fy", "N43": "slot.N", "M43": "slot.M",
-    "F14x": "O4.Fx", "F14y": "O4.Fy", "T12": "drive.T",
-}
+SIGNAL_MAP = slide_signal_map(LINKS, "slot")
 
 
 def geometry_of(scenario: Scenario) -> SlottedLeverGeometry:

@@ -252,7 +252,7 @@ class Model:
     def apply_loop_force(self, force: np.ndarray) -> None:
         """λ on body_j and −λ on body_i at the cut pin, as xfrc_applied
         (force at the body's centre of mass plus the moment of the shift)."""
-        m, d = self.m, self.d
+        d = self.d
         cut = self.topo.cut
         d.xfrc_applied[:] = 0
         for body, site, sign in ((cut.body_j, sites(cut)[1], 1.0), (cut.body_i, sites(cut)[0], -1.0)):

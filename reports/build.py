@@ -96,8 +96,13 @@ def by_run(records: pd.DataFrame) -> dict[str, pd.DataFrame]:
 
 
 def matrix_rows(records: pd.DataFrame, scenarios: Sequence[Scenario], cell) -> dict:
-    """Scenario × engine-run table with cell(records of one run) per cell."""
-    columns = list(by_run(records))
+    """Scenario × engine-run table with cell(records of one run) per cell;
+    columns grouped by engine, its default setting first."""
+    engines = list(dict.fromkeys(records["engine"]))
+    runs = records[["engine", "setting"]].drop_duplicates()
+    ordered = sorted(zip(runs["engine"], runs["setting"]),
+                     key=lambda run: (engines.index(run[0]), run[1] != "default", run[1]))
+    columns = [label(engine, setting) for engine, setting in ordered]
     empty = records.iloc[0:0]
     rows = []
     for scenario in scenarios:

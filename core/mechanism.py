@@ -130,6 +130,18 @@ def rotate(theta: np.ndarray, v: Vec2) -> tuple[np.ndarray, np.ndarray]:
     return c * v[0] - s * v[1], s * v[0] + c * v[1]
 
 
+def point_position(motion, body: str, p: Vec2, trig: tuple | None = None) -> dict[str, np.ndarray]:
+    """World position r_P = r_O + R·p of the body-fixed point p (see
+    `point_motion` for the arguments)."""
+    if body == GROUND:
+        zero = np.zeros(len(motion["t"]))
+        return dict(x=zero + p[0], y=zero + p[1])
+    theta = np.asarray(motion[f"{body}.theta"])
+    c, s = trig if trig is not None else (np.cos(theta), np.sin(theta))
+    return dict(x=np.asarray(motion[f"{body}.x"]) + c * p[0] - s * p[1],
+                y=np.asarray(motion[f"{body}.y"]) + s * p[0] + c * p[1])
+
+
 def point_motion(motion, body: str, p: Vec2, trig: tuple | None = None) -> dict[str, np.ndarray]:
     """Position, velocity and acceleration (world) of the body-fixed point p.
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .mechanism import DRIVE_TORQUE, GROUND, Mechanism, point_motion, rotate
+from .mechanism import DRIVE_TORQUE, GROUND, Mechanism, point_motion, point_position, rotate
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,10 @@ def _equations(mech: Mechanism, motion, layout: Layout):
     row = {b: i for i, b in enumerate(layout.bodies)}
     omega = lambda name: 0.0 if name == GROUND else motion[f"{name}.omega"]
     for joint in mech.joints:
-        P = at(joint.body_j, joint.point_j)
+        # Only a slide needs the joint point's velocity (its damper), so
+        # revolute joints take positions alone: the hot path at 10⁶ instants.
+        P = at(joint.body_j, joint.point_j) if joint.kind == "prismatic" else \
+            point_position(motion, joint.body_j, joint.point_j, trig.get(joint.body_j))
         cx, cy = layout.column[f"{joint.name}.Fx"], layout.column[f"{joint.name}.Fy"]
         if joint.kind == "prismatic":
             P_i = at(joint.body_i, joint.point_i)
@@ -165,28 +168,26 @@ def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     return x
 
 
-def reactions(mech: Mechanism, motion: pd.DataFrame, chunk: int = 1 << 17) -> pd.DataFrame:
-    """Joint reactions and drive torque (raw columns) at every instant.
-
-    Exact to rounding: the null-space split is an exact change of variables.
-    Processed in chunks to bound memory on very long runs.
-    """
+def reaction_values(mech: Mechanism, motion) -> np.ndarray:
+    """Joint reactions and drive torque, (unknowns, instants), in the order
+    of `Mechanism.reaction_columns`; `motion` maps raw column names to
+    arrays. Exact to rounding: the null-space split is an exact change of
+    variables."""
     layout = Layout.of(mech)
     C = _incidence(mech, layout)
-    C_pinv = np.linalg.pinv(C)
     _, _, vt = np.linalg.svd(C)
     Z = vt[C.shape[0]:].T                           # (nu, k) null-space basis
-    columns = _columns(motion)
-    x = np.zeros((len(layout.unknowns), len(motion)))
-    for start in range(0, len(motion), chunk):
-        part = {name: values[start:start + chunk] for name, values in columns.items()}
-        b_force, rows, b_var = _equations(mech, part, layout)
-        x_p = C_pinv @ b_force                        # (nu, n)
-        reduced = np.zeros((len(rows), Z.shape[1], b_force.shape[1]))
-        rhs = b_var
-        for r, entries in enumerate(rows):
-            for column, coefficient in entries.items():
-                reduced[r] += Z[column][:, None] * coefficient
-                rhs[r] -= coefficient * x_p[column]
-        x[:, start:start + chunk] = x_p + Z @ solve_small(reduced, rhs)
-    return pd.DataFrame(x.T, columns=list(layout.unknowns), index=motion.index)
+    b_force, rows, rhs = _equations(mech, motion, layout)
+    x_p = np.linalg.pinv(C) @ b_force               # (nu, n)
+    reduced = np.zeros((len(rows), Z.shape[1], b_force.shape[1]))
+    for r, entries in enumerate(rows):
+        for column, coefficient in entries.items():
+            reduced[r] += Z[column][:, None] * coefficient
+            rhs[r] -= coefficient * x_p[column]
+    return x_p + Z @ solve_small(reduced, rhs)
+
+
+def reactions(mech: Mechanism, motion: pd.DataFrame) -> pd.DataFrame:
+    """Joint reactions and drive torque as raw columns (see reaction_values)."""
+    values = reaction_values(mech, _columns(motion))
+    return pd.DataFrame(values.T, columns=mech.reaction_columns(), index=motion.index)

@@ -11,31 +11,40 @@ import pandas as pd
 from . import __version__
 from .linkages import build_mechanism
 from .mechanism import Mechanism
-from .newton_euler import reactions
+from .newton_euler import reaction_values
 from .scenario import Scenario
 from .signals import Signals, canonical_signals
 
 
+#: Instants per chunk: bounds memory on long runs and feeds one thread each.
 CHUNK = 1 << 17
 
 
 def raw_reference(mechanism: Mechanism, t: np.ndarray) -> pd.DataFrame:
     """Raw motion and reaction columns of the reference at instants t.
 
-    Long runs are split into chunks evaluated on a thread per core: the
-    work is numpy element-wise arithmetic, which releases the GIL.
+    Long runs are split into chunks evaluated on a thread per core (the
+    work is numpy element-wise arithmetic, which releases the GIL), each
+    writing its slice of one preallocated table.
     """
     t = np.asarray(t, dtype=float)
-    if len(t) <= CHUNK:
-        return _raw_chunk(mechanism, t)
-    chunks = [t[k:k + CHUNK] for k in range(0, len(t), CHUNK)]
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        return pd.concat(pool.map(lambda c: _raw_chunk(mechanism, c), chunks), ignore_index=True)
+    starts = range(0, len(t), CHUNK)
+    first = mechanism.motion(t[:1])
+    columns = list(first.columns) + mechanism.reaction_columns()
+    table = np.empty((len(columns), len(t)))
 
+    def fill(start: int) -> None:
+        motion = mechanism.motion(t[start:start + CHUNK])
+        arrays = {name: motion[name].to_numpy() for name in motion.columns}
+        table[:len(arrays), start:start + CHUNK] = np.array(list(arrays.values()))
+        table[len(arrays):, start:start + CHUNK] = reaction_values(mechanism, arrays)
 
-def _raw_chunk(mechanism: Mechanism, t: np.ndarray) -> pd.DataFrame:
-    motion = mechanism.motion(t)
-    return pd.concat([motion, reactions(mechanism, motion)], axis=1)
+    if len(starts) == 1:
+        fill(0)
+    else:
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            list(pool.map(fill, starts))
+    return pd.DataFrame(table.T, columns=columns, copy=False)
 
 
 def simulate_reference(scenario: Scenario) -> Signals:

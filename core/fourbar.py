@@ -78,13 +78,14 @@ def kinematics(g: FourBarGeometry, law: DriveLaw, t: np.ndarray) -> dict[str, np
     th2, w2, al2 = law.angle(t), law.rate(t), law.acceleration(t)
     pos = position(g, th2)
     th3, th4 = pos["theta3"], pos["theta4"]
+    (c2, s2), e3, e4 = ((np.cos(th), np.sin(th)) for th in (th2, th3, th4))
     # Velocity loop: b·ω3·j·e3 − c·ω4·j·e4 = −a·ω2·j·e2.
-    w3, w4 = solve_loop_rates(b, th3, c, th4, a * w2 * np.sin(th2), -a * w2 * np.cos(th2))
+    w3, w4 = solve_loop_rates(b, e3, c, e4, a * w2 * s2, -a * w2 * c2)
     # Acceleration loop: b·α3·j·e3 − c·α4·j·e4 =
     #   −a·(α2·j − ω2²)·e2 + b·ω3²·e3 − c·ω4²·e4.
-    rx = a * al2 * np.sin(th2) + a * w2**2 * np.cos(th2) + b * w3**2 * np.cos(th3) - c * w4**2 * np.cos(th4)
-    ry = -a * al2 * np.cos(th2) + a * w2**2 * np.sin(th2) + b * w3**2 * np.sin(th3) - c * w4**2 * np.sin(th4)
-    al3, al4 = solve_loop_rates(b, th3, c, th4, rx, ry)
+    rx = a * al2 * s2 + a * w2**2 * c2 + b * w3**2 * e3[0] - c * w4**2 * e4[0]
+    ry = -a * al2 * c2 + a * w2**2 * s2 + b * w3**2 * e3[1] - c * w4**2 * e4[1]
+    al3, al4 = solve_loop_rates(b, e3, c, e4, rx, ry)
     return dict(theta2=th2, omega2=w2, alpha2=al2, theta3=th3, omega3=w3, alpha3=al3,
                 theta4=th4, omega4=w4, alpha4=al4)
 

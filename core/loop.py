@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def solve_loop_rates(p: np.ndarray, thp: np.ndarray, q: np.ndarray, thq: np.ndarray,
+def solve_loop_rates(p: float, trig_p: tuple, q: float, trig_q: tuple,
                      rx: np.ndarray, ry: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Solve p·u·j·e^{jθp} − q·v·j·e^{jθq} = rx + j·ry for real u, v.
 
@@ -20,10 +20,12 @@ def solve_loop_rates(p: np.ndarray, thp: np.ndarray, q: np.ndarray, thq: np.ndar
     Cramer's rule gives
         u = −(rx·cosθq + ry·sinθq) / (p·sin(θp − θq)),
         v = −(rx·cosθp + ry·sinθp) / (q·sin(θp − θq)).
+    trig_p, trig_q = (cosθ, sinθ), computed once by the caller.
     """
-    sin_pq = np.sin(thp - thq)
-    u = -(rx * np.cos(thq) + ry * np.sin(thq)) / (p * sin_pq)
-    v = -(rx * np.cos(thp) + ry * np.sin(thp)) / (q * sin_pq)
+    (cp, sp), (cq, sq) = trig_p, trig_q
+    sin_pq = sp * cq - cp * sq
+    u = -(rx * cq + ry * sq) / (p * sin_pq)
+    v = -(rx * cp + ry * sp) / (q * sin_pq)
     return u, v
 
 

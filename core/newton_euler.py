@@ -159,12 +159,11 @@ def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     Cramer's rule: for the 3×3 and 4×4 reduced systems this is an order of
     magnitude faster than np.linalg.solve, which calls LAPACK once per
     instant; the tests check it against that solve to ~1e-12."""
+    k = len(A)
     det = _det(A)
     x = np.empty_like(b)
-    for i in range(len(A)):
-        Ai = A.copy()
-        Ai[:, i] = b
-        x[i] = _det(Ai) / det
+    for i in range(k):     # A with column i replaced by b, as views (no copies)
+        x[i] = _det([[b[r] if c == i else A[r][c] for c in range(k)] for r in range(k)]) / det
     return x
 
 

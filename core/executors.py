@@ -40,14 +40,16 @@ class Executor(Protocol):
 
 
 class LocalExecutor:
-    """Worker processes on this machine (pebble), reused between tasks."""
+    """Worker processes on this machine (pebble), a fresh one per task: no
+    engine state leaks from one task into the next, and a crash is charged
+    to the one task whose process died."""
 
     def __init__(self, workers: int, timeout: float):
         self.workers, self.timeout = workers, timeout
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
         results: list[Done] = []
-        with ProcessPool(max_workers=self.workers) as pool:
+        with ProcessPool(max_workers=self.workers, max_tasks=1) as pool:
             futures = [pool.schedule(fn, args=(item,), timeout=self.timeout) for item in items]
             for index, future in enumerate(futures):
                 try:

@@ -1,7 +1,7 @@
 """Run engines on scenarios in worker processes, isolated from each other.
 
 Each (scenario, engine, setting) is one task in its own worker process
-(pebble's process pool), so an engine that crashes, hangs past the timeout
+(`executors.LocalExecutor`), so an engine that crashes, hangs past the timeout
 or returns NaN fails its own comparison and nothing else. The parent
 compares every result with the reference (computed once per scenario).
 """
@@ -9,14 +9,13 @@ compares every result with the reference (computed once per scenario).
 from __future__ import annotations
 
 import time
-from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Mapping
 
 import pandas as pd
-from pebble import ProcessExpired, ProcessPool
 
 from .compare import COLUMNS, compare
+from .executors import Done, LocalExecutor
 from .reference import simulate_reference
 from .scenario import Scenario
 from .signals import Signals
@@ -74,22 +73,12 @@ def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Tas
 def run_tasks(tasks: list[Task], workers: int, timeout: float,
               on_done: Callable[[Outcome], None] = lambda outcome: None) -> list[Outcome]:
     """Run every task in a worker process; failures become Outcomes."""
-    outcomes: list[Outcome] = []
-    with ProcessPool(max_workers=workers, max_tasks=1) as pool:
-        futures = [(task, pool.schedule(simulate_task, args=(task,), timeout=timeout)) for task in tasks]
-        for task, future in futures:
-            try:
-                signals, wall = future.result()
-                outcome = Outcome(task, signals, wall_time=wall)
-            except FutureTimeout:
-                outcome = Outcome(task, None, f"timed out after {timeout:g} s (worker killed)")
-            except ProcessExpired as exc:
-                outcome = Outcome(task, None, f"worker crashed (exit code {exc.exitcode})")
-            except Exception as exc:  # the engine's own error, reported as data
-                outcome = Outcome(task, None, f"{type(exc).__name__}: {exc}")
-            outcomes.append(outcome)
-            on_done(outcome)
-    return outcomes
+    def outcome(task: Task, done: Done) -> Outcome:
+        return Outcome(task, None, done.error) if done.error else Outcome(task, *done.value)
+
+    results = LocalExecutor(workers, timeout).run(
+        simulate_task, tasks, lambda index, done: on_done(outcome(tasks[index], done)))
+    return [outcome(task, done) for task, done in zip(tasks, results)]
 
 
 def discrepancies(outcomes: list[Outcome], references: Mapping[str, Signals]) -> pd.DataFrame:

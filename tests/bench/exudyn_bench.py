@@ -11,21 +11,13 @@ Each figure is the best of N runs.
 
 from __future__ import annotations
 
-import argparse
 import time
 
 from mechval.engines.exudyn import ExudynAdapter, prepare
 from mechval.engines.exudyn_model import SOLVERS
 from mechval.linkages import build_mechanism
-from mechval.scenarios import builtin_names, load
-
-
-def best_of(repeats: int, fn) -> float:
-    """Smallest wall time of `fn()` over `repeats` calls (s)."""
-    times = []
-    for _ in range(repeats):
-        times.append(fn())
-    return min(times)
+from mechval.scenarios import load
+from timing import best_times, scenario_arguments
 
 
 def whole_run(adapter: ExudynAdapter, scenario) -> float:
@@ -47,10 +39,7 @@ def bare_solve(adapter: ExudynAdapter, scenario) -> float:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenarios", nargs="*", default=builtin_names())
-    parser.add_argument("--repeats", type=int, default=3)
-    args = parser.parse_args()
+    args = scenario_arguments(__doc__)
 
     adapter = ExudynAdapter()
     print(f"exudyn {ExudynAdapter.version()}, default settings, best of {args.repeats}")
@@ -60,8 +49,8 @@ def main() -> None:
         scenario = load(name)
         result = adapter.simulate(scenario)
         steps = result.settings["steps"]
-        run = best_of(args.repeats, lambda: whole_run(adapter, scenario))
-        bare = best_of(args.repeats, lambda: bare_solve(adapter, scenario))
+        run, bare = best_times(args.repeats, lambda: whole_run(adapter, scenario),
+                               lambda: bare_solve(adapter, scenario))
         simulated = scenario.time.end
         print(f"{name:22s} {simulated:6.2f} {steps:6d} {run:7.3f} {run / simulated:11.3f} "
               f"{1e6 * bare / steps:8.1f} {bare:7.3f} {run / bare:8.2f}")

@@ -12,33 +12,17 @@ the figures; it asserts nothing about time (a benchmark, not a test).
 
 from __future__ import annotations
 
-import argparse
-import time
 
 from mujoco import rollout
 
 from mechval.engines.mujoco import Model, MujocoAdapter
 from mechval.linkages import build_mechanism
-from mechval.scenarios import builtin_names, load
-
-
-def best_times(repeats: int, *fns) -> list[float]:
-    """Best wall time of each function over `repeats` rounds, the functions
-    interleaved in every round so that both see the same machine load."""
-    best = [float("inf")] * len(fns)
-    for _ in range(repeats):
-        for k, fn in enumerate(fns):
-            start = time.perf_counter()
-            fn()
-            best[k] = min(best[k], time.perf_counter() - start)
-    return best
+from mechval.scenarios import load
+from timing import best_times, scenario_arguments, timed
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenarios", nargs="*", default=builtin_names())
-    parser.add_argument("--repeats", type=int, default=3)
-    args = parser.parse_args()
+    args = scenario_arguments(__doc__)
 
     adapter = MujocoAdapter()
     print(f"mujoco {adapter.version()}, default settings, best of {args.repeats}")
@@ -52,8 +36,8 @@ def main() -> None:
         model = Model(mech, t, settings)
         state0 = model.initial_state()
         bare, full = best_times(args.repeats,
-                                lambda: rollout.rollout(model.m, model.d, state0[None, :], nstep=model.nstep),
-                                lambda: adapter.run(mech, t, settings))
+                                timed(lambda: rollout.rollout(model.m, model.d, state0[None, :], nstep=model.nstep)),
+                                timed(lambda: adapter.run(mech, t, settings)))
         span = float(t[-1] - t[0])
         print(f"{name:22s} {settings['timestep']:9.3g} {model.nstep:7d} {full / span:12.4f} "
               f"{bare / span:12.4f} {(full - bare) * 1e3:12.1f} {full / bare:6.3f}")

@@ -12,16 +12,15 @@ Each figure is the best of N runs.
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
-import pybullet as p
 
 from mechval.engines.pybullet import PybulletAdapter
-from mechval.engines.pybullet_model import NO_CAP, build
+from mechval.engines.pybullet_model import NO_CAP, build, p
 from mechval.linkages import build_mechanism
-from mechval.scenarios import builtin_names, load
+from mechval.scenarios import load
+from timing import best_times, scenario_arguments
 
 
 def whole_run(adapter: PybulletAdapter, scenario) -> float:
@@ -60,10 +59,7 @@ def bare_loop(adapter: PybulletAdapter, scenario) -> float:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenarios", nargs="*", default=builtin_names())
-    parser.add_argument("--repeats", type=int, default=1)
-    args = parser.parse_args()
+    args = scenario_arguments(__doc__, repeats=1)
     adapter = PybulletAdapter()
     print(f"pybullet {adapter.version()}")
     print(f"{'scenario':24s} {'timestep':>10s} {'s/sim s':>9s} {'bare s/sim s':>13s} {'overhead':>9s}")
@@ -71,8 +67,8 @@ def main() -> None:
         scenario = load(name)
         mechanism = build_mechanism(scenario)
         dt = adapter.default_settings(mechanism, scenario.time.t)["timestep"]
-        whole = min(whole_run(adapter, scenario) for _ in range(args.repeats))
-        bare = min(bare_loop(adapter, scenario) for _ in range(args.repeats))
+        whole, bare = best_times(args.repeats, lambda: whole_run(adapter, scenario),
+                                 lambda: bare_loop(adapter, scenario))
         span = scenario.time.end
         print(f"{name:24s} {dt:10.3g} {whole / span:9.3f} {bare / span:13.3f} {whole / bare:9.2f}")
 

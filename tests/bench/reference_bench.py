@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -24,15 +23,7 @@ from mechval.linkages import build_mechanism  # noqa: E402
 from mechval.reference import raw_reference  # noqa: E402
 from mechval.scenarios import load  # noqa: E402
 from norton import norton_system  # noqa: E402
-
-
-def best_of(repeats: int, fn) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
+from timing import best_times, timed  # noqa: E402
 
 
 def main() -> None:
@@ -45,7 +36,7 @@ def main() -> None:
     scenario = load("fourbar-seed")
     mech = build_mechanism(scenario)
     t = np.linspace(0.0, scenario.time.end, args.instants)
-    vectorised = best_of(args.repeats, lambda: raw_reference(mech, t))
+    vectorised, = best_times(args.repeats, timed(lambda: raw_reference(mech, t)))
 
     geometry = scenario.geometry
     m = {b.name: b for b in mech.bodies}
@@ -61,7 +52,7 @@ def main() -> None:
                                    geometry["coupler"], geometry["rocker"], geometry["ground"])
             np.linalg.solve(A, rhs)
 
-    per_instant = best_of(1, loop) / args.loop_instants
+    per_instant = timed(loop)() / args.loop_instants
     loop_total = per_instant * args.instants
     print(f"four-bar reference (kinematics + Newton–Euler), {args.instants:,} instants")
     print(f"  vectorised          {vectorised:8.3f} s   ({vectorised / args.instants * 1e9:7.1f} ns/instant)")

@@ -1,0 +1,36 @@
+"""What the benchmark scripts share: their command line and best-of timing."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Callable
+
+from mechval.scenarios import builtin_names, load
+
+
+def timed(fn: Callable[[], object]) -> Callable[[], float]:
+    """A callable that runs fn and returns its wall time (s)."""
+    def run() -> float:
+        start = time.perf_counter()
+        fn()
+        return time.perf_counter() - start
+    return run
+
+
+def best_times(repeats: int, *runs: Callable[[], float]) -> list[float]:
+    """Best of `repeats` for each run (each returns the time it measured),
+    the runs interleaved in every round so that all see the same load."""
+    best = [float("inf")] * len(runs)
+    for _ in range(repeats):
+        for k, run in enumerate(runs):
+            best[k] = min(best[k], run())
+    return best
+
+
+def scenario_arguments(doc: str, repeats: int = 3) -> argparse.Namespace:
+    """SCENARIO... (default: the built-ins not tagged hard) and --repeats."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("scenarios", nargs="*", default=[n for n in builtin_names() if "hard" not in load(n).tags])
+    parser.add_argument("--repeats", type=int, default=repeats)
+    return parser.parse_args()

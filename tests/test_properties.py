@@ -20,11 +20,23 @@ from scenario_data import fourbar, slider_crank
 
 length = st.floats(0.01, 2.0)
 mass = st.floats(1e-3, 1e3)
-drive = st.fixed_dictionaries({"phi0": st.floats(-10, 10), "omega0": st.floats(-200, 200),
-                               "alpha": st.floats(-100, 100)})
-gravity = st.one_of(st.none(), st.lists(st.floats(-20, 20), min_size=2, max_size=2))
-damping = st.floats(0.0, 5.0)
-PROPERTY_SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
+def signed(low: float, high: float):
+    """0, or a magnitude in [low, high] of either sign: values like 1e-90
+    rad/s would only test float64 underflow (ω⁴ terms vanish while ω² terms
+    do not), not the reference."""
+    magnitude = st.floats(low, high)
+    return st.one_of(st.just(0.0), magnitude, magnitude.map(lambda v: -v))
+
+
+drive = st.fixed_dictionaries({"phi0": st.floats(-10, 10), "omega0": signed(1e-3, 200),
+                               "alpha": signed(1e-3, 100)})
+gravity = st.one_of(st.none(), st.lists(signed(1e-3, 20), min_size=2, max_size=2))
+damping = st.one_of(st.just(0.0), st.floats(1e-4, 5.0))
+# derandomize: CI sees the same examples on every run; to explore further,
+# set derandomize=False and run with --hypothesis-seed=N, or raise
+# max_examples locally.
+PROPERTY_SETTINGS = settings(max_examples=60, deadline=None, derandomize=True,
+                             suppress_health_check=[HealthCheck.filter_too_much])
 
 
 def link_mass(draw, L):
@@ -108,7 +120,7 @@ def corrupted(draw):
     return data
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=200, deadline=None, derandomize=True)
 @given(corrupted())
 def test_random_bad_input_is_refused_cleanly(data):
     """Either a clean ScenarioError naming the file and a key, or a valid

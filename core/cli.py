@@ -13,6 +13,10 @@ class UsageError(Exception):
     """A user error reported as one line, exit status 2."""
 
 
+class EngineFailure(Exception):
+    """An engine run that produced no usable result, exit status 1."""
+
+
 def _load(name: str):
     from mechval.scenarios import load
     return load(name)
@@ -45,6 +49,11 @@ def simulate(scenario, engine: str):
 def cmd_simulate(args) -> int:
     scenario = _load(args.scenario)
     signals = simulate(scenario, args.engine)
+    unexplained = signals.unexplained_gaps()
+    if unexplained:
+        # An engine that blew up must not leave a CSV that looks like data.
+        raise EngineFailure(f"{args.engine} returned non-finite values without a reason "
+                            f"({'; '.join(unexplained)}); nothing written to {args.csv}")
     signals.to_csv(args.csv)
     for name, reason in signals.missing.items():
         print(f"note: {name}: missing values ({reason})", file=sys.stderr)
@@ -239,6 +248,9 @@ def main(argv: list[str] | None = None) -> int:
     except EngineUnavailable as exc:
         print(f"mechval: engine unavailable: {exc}", file=sys.stderr)
         return 3
+    except EngineFailure as exc:
+        print(f"mechval: engine failed: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("mechval: interrupted", file=sys.stderr)
         return 130

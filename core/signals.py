@@ -70,6 +70,16 @@ class Signals:
     def __getitem__(self, name: str) -> np.ndarray:
         return self.frame[name].to_numpy()
 
+    def unexplained_gaps(self) -> list[str]:
+        """'signal from t = …' for every column with NaN/inf but no stated
+        reason (an engine blow-up rather than a declared gap)."""
+        gaps = []
+        for name in self.frame.columns:
+            bad = ~np.isfinite(self.frame[name].to_numpy(dtype=float))
+            if bad.any() and name not in self.missing:
+                gaps.append(f"{name} from t = {self.t[bad][0]:.6g} s")
+        return gaps
+
     def to_csv(self, path: str | os.PathLike) -> None:
         """Write full float64 precision (%.17g); missing values are empty.
 

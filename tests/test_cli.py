@@ -69,3 +69,14 @@ def test_analyse_reports_grashof_and_toggles():
     out = mechval("analyse", "fourbar-seed")
     assert out.returncode == 0, out.stderr
     assert "crank-rocker" in out.stdout and "toggle" in out.stdout
+
+
+def test_simulate_refuses_to_write_an_engine_blow_up(tmp_path, monkeypatch):
+    """NaN without a reason (an engine blow-up) writes no CSV, exit 1."""
+    from fake_engines import FAKES
+    from mechval import cli
+    from mechval.engines import registry
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    csv = tmp_path / "out.csv"
+    assert cli.main(["simulate", "slider-crank", "--engine", "nonfinite", "--csv", str(csv)]) == 1
+    assert not csv.exists()

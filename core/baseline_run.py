@@ -129,6 +129,8 @@ def parse_signal_rtol(items: list[str] | None) -> dict[str, float]:
             result[name] = float(value)
         except ValueError:
             raise UsageError(f"--signal-rtol {item}: expected NAME=NUMBER") from None
+        if not 0 <= result[name] < float("inf"):
+            raise UsageError(f"--signal-rtol {item}: must be a finite number ≥ 0")
     return result
 
 

@@ -13,6 +13,30 @@ class UsageError(Exception):
     """A user error reported as one line, exit status 2."""
 
 
+def _count(text: str) -> int:
+    """argparse type: a whole number ≥ 0."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
+    return value
+
+
+def _positive(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    value = float(text)
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    """argparse type: a whole number ≥ 1."""
+    value = _count(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return value
+
+
 class EngineFailure(Exception):
     """An engine run that produced no usable result, exit status 1."""
 
@@ -67,6 +91,9 @@ def _engines(names: list[str] | None) -> list[str]:
     engine that is not installed is an error, an unrequested one is skipped
     with its reason."""
     from mechval.engines.registry import adapter, availability
+    if names and "reference" in names:
+        raise UsageError("'reference' is the analytic solution every engine is compared with, not an engine "
+                         "to run here (use it with `mechval simulate`)")
     if names:
         for name in names:
             adapter(name)       # raises UnknownEngine / EngineUnavailable
@@ -156,15 +183,13 @@ def cmd_run(args) -> int:
     records = discrepancies(outcomes, references)
     sections = [s for s in (stability_section(records, scenarios),) if s]
     if args.cost:
-        from mechval.reports.cost_report import cost_section
+        from mechval.reports.cost_report import cost_section, write_table
         from .executors import LocalExecutor
         table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
                                            quick=False, repeats=3, quiet=args.quiet)
         sections.append(cost_section(table, orders, cheap))
-    write_report(out, scenarios, references, outcomes, records, sections)
-    if args.cost:
-        from mechval.reports.cost_report import write_table
-        write_table(table, out / "cost.csv")
+        files = {"cost.csv": lambda path: write_table(table, path)}
+    write_report(out, scenarios, references, outcomes, records, sections, files if args.cost else None)
     print(summary_markdown(records, scenarios, provenance()))
     print(f"report: {out / 'index.html'}")
     return 0 if passed(records) else 1
@@ -199,8 +224,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="built-in names or .toml paths (default: all)")
     p.add_argument("--engine", action="append", help="engine to run (repeatable; default: all installed)")
     p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
-    p.add_argument("--workers", type=int, default=0, help="worker processes (default: one per core)")
-    p.add_argument("--timeout", type=float, default=900.0, help="seconds before an engine run is killed")
+    p.add_argument("--workers", type=_count, default=0, help="worker processes (default: one per core)")
+    p.add_argument("--timeout", type=_positive, default=900.0, help="seconds before an engine run is killed")
     p.add_argument("--skip-hard", action="store_true",
                    help="leave out the built-in scenarios tagged 'hard' (long runs, singular neighbourhoods)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -211,10 +236,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", action="append", help="engine to sweep (repeatable; default: all installed)")
     p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
     p.add_argument("--dask", metavar="ADDRESS", help="run the points on this Dask scheduler instead of locally")
-    p.add_argument("--repeats", type=int, default=3, help="timed runs per point (median; default 3)")
+    p.add_argument("--repeats", type=_positive_int, default=3, help="timed runs per point (median; default 3)")
     p.add_argument("--quick", action="store_true", help="two points per engine: the default step and ~10x coarser")
-    p.add_argument("--workers", type=int, default=0, help="local worker processes (default: one per core)")
-    p.add_argument("--timeout", type=float, default=900.0, help="seconds before a point is given up")
+    p.add_argument("--workers", type=_count, default=0, help="local worker processes (default: one per core)")
+    p.add_argument("--timeout", type=_positive, default=900.0, help="seconds before a point is given up")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_cost)
     common = argparse.ArgumentParser(add_help=False)
@@ -222,13 +247,13 @@ def build_parser() -> argparse.ArgumentParser:
                         help="built-in names or .toml paths (default: all not tagged 'hard')")
     common.add_argument("--engine", action="append", help="engine (repeatable; default: all installed)")
     common.add_argument("--dir", required=True, type=Path, help="baseline folder, e.g. baselines/")
-    common.add_argument("--workers", type=int, default=0, help="worker processes (default: one per core)")
+    common.add_argument("--workers", type=_count, default=0, help="worker processes (default: one per core)")
     p = sub.add_parser("baseline", help="engine regression checks against stored signals per engine version")
     actions = p.add_subparsers(dest="action", required=True)
     q = actions.add_parser("save", parents=[common], help="store baselines (never overwrites without --force)")
     q.add_argument("--force", action="store_true", help="overwrite existing baselines")
     q = actions.add_parser("check", parents=[common], help="re-run and compare with the stored baselines")
-    q.add_argument("--rtol", type=float, help="max |change| / peak of a signal (default 1e-9)")
+    q.add_argument("--rtol", type=_positive, help="max |change| / peak of a signal (default 1e-9)")
     q.add_argument("--signal-rtol", action="append", metavar="NAME=R", help="per-signal rtol (repeatable)")
     p.set_defaults(func=cmd_baseline)
     p = sub.add_parser("analyse", help="engineering analysis: Grashof, transmission angle, toggles")
@@ -251,6 +276,9 @@ def main(argv: list[str] | None = None) -> int:
     except EngineFailure as exc:
         print(f"mechval: engine failed: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:          # e.g. an output path that is a folder
+        print(f"mechval: error: cannot write {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("mechval: interrupted", file=sys.stderr)
         return 130

@@ -26,7 +26,3 @@ class DriveLaw:
     def acceleration(self, t: np.ndarray | float) -> np.ndarray:
         t = np.asarray(t, dtype=float)
         return np.full_like(t, self.alpha)
-
-    def peak_rate(self, t_end: float, t_start: float = 0.0) -> float:
-        """Largest |φ̇| on [t_start, t_end] (φ̇ is linear, so at an end)."""
-        return float(max(abs(self.rate(t_start)), abs(self.rate(t_end))))

@@ -58,14 +58,20 @@ def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Tas
     Hard scenarios run at each engine's default setting only: they test
     stability, and the accuracy variants would multiply their long runs.
     """
-    from mechval.engines.registry import adapter_class
+    from mechval.engines.registry import adapter
+    from mechval.linkages import build_mechanism
     tasks = []
     for scenario in scenarios:
+        mechanism = build_mechanism(scenario)
         for engine in engines:
-            variants = adapter_class(engine).variants
+            engine_adapter = adapter(engine)
+            variants = engine_adapter.variants
             if "hard" in scenario.tags:
                 variants = {"default": variants["default"]}
             for setting, overrides in variants.items():
+                # Bad [engines.NAME] settings are the user's input: refuse them
+                # here, with file and key, rather than as a failed run.
+                engine_adapter.settings_for(scenario, mechanism, overrides)
                 tasks.append(Task(scenario, engine, setting, dict(overrides)))
     return tasks
 

@@ -22,6 +22,9 @@ class ScenarioError(ValueError):
         self.source, self.key, self.reason = str(source or "<scenario>"), key, reason
         super().__init__(f"{self.source}: {key}: {reason}")
 
+    def __reduce__(self):   # raised in worker processes, re-raised in the parent
+        return type(self), (self.source, self.key, self.reason)
+
 
 #: Tolerance classes and their defaults (DESIGN.md; velocity and acceleration
 #: are mechval extensions). Angles and positions are absolute (rad, m); the

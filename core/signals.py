@@ -10,6 +10,7 @@ frame and empty cells in CSV; nothing is ever invented to fill them.
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -151,6 +152,23 @@ def with_slide_columns(mechanism: Mechanism, raw: pd.DataFrame,
             if f"{j.name}.Fx" in missing:
                 missing = {**missing, f"{j.name}.N": missing[f"{j.name}.Fx"]}
     return (raw.assign(**extra) if extra else raw), missing
+
+
+def write_folder_atomically(out: str | os.PathLike, fill) -> Path:
+    """Call fill(folder) on a temporary sibling of `out` (which must not
+    exist yet), then rename it to `out`: an interrupted write leaves nothing."""
+    out = Path(out)
+    if out.exists():
+        raise FileExistsError(f"{out} exists; choose another --out or remove it")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        fill(tmp)
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
 
 
 def write_atomically(path: str | os.PathLike, write) -> None:

@@ -44,6 +44,9 @@ class EngineAdapter(ABC):
     #: The import name of the engine library, and its distribution on PyPI.
     library: ClassVar[str]
     distribution: ClassVar[str]
+    #: Allowed values of string settings, and settings that must be > 0.
+    setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    positive_settings: ClassVar[tuple[str, ...]] = ("timestep",)
     #: Settings reported by `mechval run`: name → overrides of the defaults.
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
     #: Work-precision sweeps (`mechval cost`): the setting that is the time
@@ -59,7 +62,7 @@ class EngineAdapter(ABC):
     def unavailable_reason(cls) -> str:
         try:
             importlib.import_module(cls.library)
-        except Exception as exc:  # any import failure makes the engine unavailable
+        except ImportError as exc:   # not installed, or a broken installation
             return f"{cls.library} cannot be imported ({type(exc).__name__}: {exc})"
         return ""
 
@@ -78,20 +81,29 @@ class EngineAdapter(ABC):
     def settings_for(self, scenario: Scenario, mechanism: Mechanism,
                      overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
         """Derived defaults, then the scenario's [engines.NAME] table, then
-        explicit overrides; unknown keys are refused with the file and key."""
+        explicit overrides. An unknown key, a wrong type, a value outside
+        `setting_choices` or `positive_settings`, or a step that does not
+        divide the sample interval is refused with the file and key."""
         settings = self.default_settings(mechanism, scenario.time.t)
         for origin, table in (("file", scenario.settings_for(self.name)), ("override", overrides or {})):
+            source = scenario.source if origin == "file" else "settings override"
             for key, value in table.items():
+                fail = lambda reason: ScenarioError(source, f"engines.{self.name}.{key}", reason)
                 if key not in settings:
-                    source = scenario.source if origin == "file" else "settings override"
-                    raise ScenarioError(source, f"engines.{self.name}.{key}",
-                                        f"unknown setting (known: {', '.join(sorted(settings))})")
+                    raise fail(f"unknown setting (known: {', '.join(sorted(settings))})")
                 if type(value) is not type(settings[key]) and not (
                         isinstance(value, (int, float)) and isinstance(settings[key], float)
                         and not isinstance(value, bool)):
-                    source = scenario.source if origin == "file" else "settings override"
-                    raise ScenarioError(source, f"engines.{self.name}.{key}",
-                                        f"expected {type(settings[key]).__name__}, got {value!r}")
+                    raise fail(f"expected {type(settings[key]).__name__}, got {value!r}")
+                if key in self.setting_choices and value not in self.setting_choices[key]:
+                    raise fail(f"must be one of {', '.join(map(repr, self.setting_choices[key]))}, got {value!r}")
+                if key in self.positive_settings and not value > 0:
+                    raise fail(f"must be positive, got {value!r}")
+                if key == self.step_setting and len(scenario.time.t) > 1:
+                    interval = float(scenario.time.t[1] - scenario.time.t[0])
+                    if abs(interval / value - round(interval / value)) > 1e-9 * (interval / value):
+                        raise fail(f"{value!r} s does not divide the sample interval {interval:.6g} s "
+                                   "(signals are read at the samples, so a whole number of steps must fit)")
                 settings[key] = float(value) if isinstance(settings[key], float) else value
         return settings
 

@@ -70,6 +70,9 @@ class ExudynAdapter(EngineAdapter):
     name = "exudyn"
     library = "exudyn"
     distribution = "exudyn"
+    setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"solver": ("index2", "index3")}
+    positive_settings: ClassVar[tuple[str, ...]] = (
+        "timestep", "newton_relative_tolerance", "newton_absolute_tolerance")
     #: Also report the index-3 solver. (High accuracy is a smaller step, e.g.
     #: timestep 1e-4 on fourbar-seed: every signal within 3e-7 of its peak,
     #: angles 5e-8 rad; a fixed step is no variant for every scene.)

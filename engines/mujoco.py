@@ -72,6 +72,10 @@ class MujocoAdapter(EngineAdapter):
     name: ClassVar[str] = "mujoco"
     library: ClassVar[str] = "mujoco"
     distribution: ClassVar[str] = "mujoco"
+    setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "mode": ("forward", "inverse"), "integrator": ("RK4", "Euler", "implicit", "implicitfast")}
+    positive_settings: ClassVar[tuple[str, ...]] = (
+        "timestep", "refine", "solref_steps", "drive_solref_steps", "solref_dampratio", "iterations", "clock_mass")
     #: "high-accuracy": a quarter of the rule's step, solref 20 steps
     #: (≤ 1e-6 relative on fourbar-seed's forces, see the module docstring).
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {

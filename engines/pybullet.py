@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, ClassVar, Mapping
 
 import numpy as np
 import pandas as pd
@@ -65,6 +65,7 @@ class PybulletAdapter(EngineAdapter):
     name = "pybullet"
     library = "pybullet"
     distribution = "pybullet"
+    setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"layout": ("split", "tree")}
     #: `mechval cost` has one line here: the solver is not a setting (Dantzig
     #: LCP, exact; the iterative ones stop early, ENGINE_NOTES).
     cost_variants = {"Dantzig": {}}

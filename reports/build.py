@@ -9,12 +9,10 @@ import datetime
 import json
 import os
 import platform
-import shutil
 import subprocess
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -24,7 +22,7 @@ import mechval
 from mechval.linkages import build_mechanism
 from mechval.runner import Outcome
 from mechval.scenario import Scenario
-from mechval.signals import Signals
+from mechval.signals import Signals, write_folder_atomically
 
 from . import plots
 
@@ -170,15 +168,13 @@ def _runs(outcomes: Iterable[Outcome]) -> list[dict]:
 
 def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str, Signals],
                  outcomes: list[Outcome], records: pd.DataFrame,
-                 extra_sections: Sequence[Section] = ()) -> Path:
-    """Render the report into `out` (which must not exist yet)."""
-    out = Path(out)
-    if out.exists():
-        raise FileExistsError(f"{out} exists; choose another --out or remove it")
-    out.parent.mkdir(parents=True, exist_ok=True)
+                 extra_sections: Sequence[Section] = (),
+                 extra_files: Mapping[str, Callable[[Path], None]] | None = None) -> Path:
+    """Render the report into `out` (which must not exist yet), whole or not
+    at all; extra_files maps a file name to a function writing that path."""
     meta = provenance()
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+
+    def fill(folder: Path) -> None:
         env = Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html", "j2"]))
         sections = [_scenario_section(s, references[s.name], [o for o in outcomes if o.task.scenario.name == s.name],
                                       records) for s in scenarios]
@@ -187,11 +183,10 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
             overall_pass=not (records["verdict"] == "fail").any(),
             failures=int(records[records["verdict"] == "fail"].groupby(["scenario", "engine", "setting"]).ngroups),
             record_columns=RECORD_COLUMNS, text_columns=TEXT_COLUMNS, extra_sections=extra_sections)
-        (tmp / "index.html").write_text(html, encoding="utf-8")
-        records.to_csv(tmp / "discrepancies.csv", index=False, float_format="%.17g")
-        (tmp / "summary.md").write_text(summary_markdown(records, scenarios, meta), encoding="utf-8")
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+        (folder / "index.html").write_text(html, encoding="utf-8")
+        records.to_csv(folder / "discrepancies.csv", index=False, float_format="%.17g")
+        (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta), encoding="utf-8")
+        for name, write in (extra_files or {}).items():
+            write(folder / name)
+
+    return write_folder_atomically(out, fill)

@@ -11,9 +11,6 @@ like the run report.
 from __future__ import annotations
 
 import base64
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +19,7 @@ from jinja2 import Environment
 
 from mechval.cost import CLASS_ORDER, HEADLINE, REFERENCE
 from mechval.cost_tables import MIN_ORDER, ORDER_SPREAD, pivot_cells
+from mechval.signals import write_folder_atomically
 
 from .build import Section, provenance
 from .plots import plt, to_png
@@ -154,23 +152,16 @@ def write_table(table: pd.DataFrame, path: Path) -> None:
 
 
 def write_cost_report(out: Path, table: pd.DataFrame, orders: pd.DataFrame, cheap: pd.DataFrame) -> Path:
-    """Write the cost report folder `out` (which must not exist yet)."""
-    out = Path(out)
-    if out.exists():
-        raise FileExistsError(f"{out} exists; choose another --out or remove it")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    """Write the cost report folder `out` (which must not exist yet), whole
+    or not at all."""
+    def fill(folder: Path) -> None:
         for name, frame in (("cost.csv", table), ("convergence.csv", orders), ("cheapest.csv", cheap)):
-            write_table(frame, tmp / name)
+            write_table(frame, folder / name)
         pngs = diagrams(table)
         for scenario, png in pngs.items():
             safe = "".join(c if c.isalnum() or c in "-_" else "-" for c in scenario)
-            (tmp / f"work-precision-{safe}.png").write_bytes(base64.b64decode(png))
+            (folder / f"work-precision-{safe}.png").write_bytes(base64.b64decode(png))
         body = section_html(table, orders, cheap, pngs)
-        (tmp / "index.html").write_text(PAGE.render(title=TITLE, meta=provenance(), body=body), encoding="utf-8")
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+        (folder / "index.html").write_text(PAGE.render(title=TITLE, meta=provenance(), body=body), encoding="utf-8")
+
+    return write_folder_atomically(out, fill)

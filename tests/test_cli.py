@@ -80,3 +80,41 @@ def test_simulate_refuses_to_write_an_engine_blow_up(tmp_path, monkeypatch):
     csv = tmp_path / "out.csv"
     assert cli.main(["simulate", "slider-crank", "--engine", "nonfinite", "--csv", str(csv)]) == 1
     assert not csv.exists()
+
+
+def short_scene(tmp_path, extra: str = "") -> Path:
+    path = tmp_path / "short.toml"
+    text = builtin_path("slider-crank").read_text(encoding="utf-8")
+    path.write_text(text.replace("end = 2.0", "end = 0.1").replace("samples = 401", "samples = 11") + extra,
+                    encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("table,key,reason", [
+    ("[engines.exudyn]\ntimestep = 0.0\n", "engines.exudyn.timestep", "must be positive"),
+    ("[engines.exudyn]\ntimestep = 3e-3\n", "engines.exudyn.timestep", "0.003 s does not divide the sample interval"),
+    ("[engines.mujoco]\nintegrator = \"bogus\"\n", "engines.mujoco.integrator", "must be one of"),
+    ("[engines.pybullet]\nlayout = \"bogus\"\n", "engines.pybullet.layout", "must be one of"),
+    ("[engines.mujoco]\nfoo = 1\n", "engines.mujoco.foo", "unknown setting"),
+])
+def test_bad_engine_settings_refused_before_any_run(tmp_path, table, key, reason):
+    scene = short_scene(tmp_path, "\n" + table)
+    engine = key.split(".")[1]
+    for command in (["simulate", scene, "--engine", engine, "--csv", tmp_path / "x.csv"],
+                    ["run", scene, "--engine", engine, "--out", tmp_path / "rep", "--quiet"]):
+        out = mechval(*command)
+        assert out.returncode == 2, out.stdout + out.stderr
+        assert f"{scene}: {key}: {reason}" in out.stderr and "Traceback" not in out.stderr
+    assert not (tmp_path / "x.csv").exists() and not (tmp_path / "rep").exists()
+
+
+def test_bad_numbers_and_paths_refused(tmp_path):
+    checks = [
+        (["run", "slider-crank", "--workers", "-1"], "must be 0 or more"),
+        (["run", "slider-crank", "--timeout", "0"], "must be a positive number"),
+        (["run", "slider-crank", "--engine", "reference"], "not an engine to run here"),
+        (["simulate", "slider-crank", "--csv", tmp_path], "cannot write"),
+    ]
+    for command, message in checks:
+        out = mechval(*command)
+        assert out.returncode == 2 and message in out.stderr and "Traceback" not in out.stderr, command

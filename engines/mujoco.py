@@ -11,7 +11,9 @@ Modes (setting "mode"):
   sample the stored state is re-evaluated with `mj_forward` +
   `mj_rnePostConstraint`; these are exactly the forces of the step that
   starts at that instant, so they are stamped at the state's own time (not
-  at the end of the step, which would make the error O(dt)).
+  at the end of the step, which would make the error O(dt)). The read-out
+  costs one `mj_forward` per sample plus vectorised numpy; everything it
+  needs is in fixed mjData fields, copied in one piece (`Snapshot`).
 - "inverse": `mj_inverse` at the reference q, q̇, q̈ with constraints off;
   qfrc_inverse is split by least squares into the drive torque on its
   coordinate and the loop force through the cut pin's Jacobian. This checks
@@ -28,9 +30,11 @@ at the sample instant):
   on body_j is the z torque shifted to body_j's joint point, signed likewise.
 - Cut pin: the `connect` rows of `efc_force` are the world force on site1's
   body, which is body_j: Fij directly (inverse mode: the least-squares λ).
-- drive.T: the joint equality's `efc_force` is the generalized force on the
-  drive hinge coordinate; T = sign·efc (sign −1 if the hinge's child is
-  body_i). A damper at the drive pin is a tendon, not part of this force.
+  It is read from `cfrc_ext`, where MuJoCo adds it (`cut_force`).
+- drive.T: the joint equality's `efc_force` λ is the generalized force on
+  the drive hinge coordinate; T = sign·λ (sign −1 if the hinge's child is
+  body_i). It is read from `qfrc_constraint` of the clock (`drive_torque`).
+  A damper at the drive pin is a tendon, not part of this force.
 
   The cut pin's damper acts through its tendon on the tree's hinges, which
   moves its couple onto the path's bodies (same motion, other internal
@@ -49,8 +53,10 @@ the step gains nothing more (5e-7).
 
 from __future__ import annotations
 
+import collections
+import contextlib
 import time
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Iterator, Mapping
 
 import mujoco
 import numpy as np
@@ -60,12 +66,14 @@ from mujoco import rollout
 from mechval.engines.base import EngineAdapter, RawRun, default_step
 from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism, rotate
 
-from .mujoco_model import CLOCK, Topology, coordinates, mjcf, sites, topology
+from .mujoco_model import CLOCK, Topology, coordinates, mjcf, raw_columns, sites, topology
+from .mujoco_snapshot import Snapshot
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
-#: Data fields recorded at every sample for the read-out.
-RECORDED = ("time", "qpos", "qvel", "qacc", "xpos", "cvel", "cacc", "cfrc_int", "subtree_com", "site_xpos",
-            "xaxis", "qfrc_passive")
+#: Data fields the read-out needs at every sample (a forward run takes time,
+#: qpos and qvel from the rollout's states).
+RECORDED = ("qacc", "xpos", "xaxis", "cvel", "cacc", "cfrc_int", "cfrc_ext", "subtree_com", "site_xpos",
+            "qfrc_passive", "qfrc_constraint")
 
 
 class MujocoAdapter(EngineAdapter):
@@ -125,11 +133,37 @@ class MujocoAdapter(EngineAdapter):
         model = Model(mechanism, times, settings)
         build_time = time.perf_counter() - start
         runner = model.forward if settings["mode"] == "forward" else model.inverse
-        frame, info = runner()
+        with warnings_counted() as warnings:
+            frame, info = runner()
+        info.update(warnings=sum(warnings.values()))
+        if warnings:
+            info.update(first_warning=next(iter(warnings)))
         solref = lambda eq: " ".join(f"{v:.6g}" for v in model.m.eq_solref[eq])
         info.update(build_time_s=build_time, step=model.dt, solimp=settings["solimp"],
                     solref=solref(model.loop_eq), drive_solref=solref(model.drive_eq))
         return RawRun(frame, {}, info)
+
+
+@contextlib.contextmanager
+def warnings_counted() -> Iterator[collections.Counter]:
+    """MuJoCo's warnings (e.g. "Nan, Inf or huge value in QACC ...")
+    counted for the run's info, instead of MuJoCo's default: print them and
+    append them to MUJOCO_LOG.TXT in the user's working directory."""
+    counts: collections.Counter = collections.Counter()
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda message: counts.update([message]))
+    try:
+        yield counts
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b over the last axis (3): numpy's formula, so bit for bit
+    `np.cross`, without its axis handling, which costs more than the
+    arithmetic on a few hundred samples."""
+    a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 class Model:
@@ -156,27 +190,28 @@ class Model:
         self.loop_eq, self.drive_eq = m.equality(f"{self.topo.cut.name}__loop").id, m.equality("drive").id
         self.drive = self.topo.of_joint(mech.drive.joint)
 
-    def start(self, preroll: int, dt: float) -> tuple[int, pd.DataFrame]:
+    def start(self, preroll: int, dt: float) -> tuple[int, dict[str, np.ndarray]]:
         """The longest pre-roll (≤ the requested one) along φ(t) over which
-        the reference loop closes, and the reference motion at its start."""
+        the reference loop closes, and the reference motion at its start
+        (raw columns of one instant)."""
         while preroll > 0:
             t = float(self.times[0]) - preroll * dt + dt * np.arange(preroll + 1)
             try:
                 with np.errstate(invalid="ignore"):
                     motion = self.mech.motion(t)
                 if np.all(np.isfinite(motion.to_numpy())):
-                    return preroll, motion.iloc[:1].reset_index(drop=True)
+                    return preroll, raw_columns(motion.iloc[:1])
             except ValueError:                    # the reference refuses those instants
                 pass
             preroll //= 2
-        return 0, self.mech.motion(self.times[:1])
+        return 0, raw_columns(self.mech.motion(self.times[:1]))
 
     # -- state from the reference ------------------------------------------------
 
-    def set_reference(self, motion: pd.DataFrame, row: int, coords) -> None:
+    def set_reference(self, motion: Mapping[str, np.ndarray], row: int, coords) -> None:
         """Put the reference q, q̇, q̈ of instant `row` into the data."""
         d = self.d
-        d.time = float(motion["t"].iloc[row])
+        d.time = float(motion["t"][row])
         for name, (q, qd, qdd) in coords.items():
             jid = self.jid[name]
             d.qpos[self.m.jnt_qposadr[jid]] = q[row]
@@ -206,33 +241,44 @@ class Model:
         start = time.perf_counter()
         states = rollout.rollout(m, d, state0[None, :], nstep=nstep)[0][0] if nstep else np.empty((0, len(state0)))
         wall = time.perf_counter() - start
-        samples = np.vstack([state0[None, :], states])[self.preroll::self.substeps]
-        (record, pairs), cut_force, torque = self.recorder(), np.empty((len(samples), 2)), np.empty(len(samples))
-        loop_rows, drive_row = None, None
+        # Sample k is the state after step preroll + k·substeps; states[i]
+        # is the state after step i + 1 (state0 is after none).
+        steps = self.preroll + self.substeps * np.arange(len(self.times))
+        samples = states[np.maximum(steps - 1, 0)]
+        if steps[0] == 0:
+            samples[0] = state0
+        snapshot = Snapshot(m, d, RECORDED, len(samples))
         for k, state in enumerate(samples):
             mujoco.mj_setState(m, d, state, FULL)
             mujoco.mj_forward(m, d)
             mujoco.mj_rnePostConstraint(m, d)
-            if loop_rows is None:
-                loop_rows, drive_row = self.efc_rows(self.loop_eq)[:2], self.efc_rows(self.drive_eq)[0]
-            self.snapshot(pairs, k)
-            cut_force[k] = d.efc_force[loop_rows]
-            torque[k] = self.drive.sign * d.efc_force[drive_row]
-        frame, info = self.columns(record, cut_force, torque)
+            snapshot.take(k)
+        record = snapshot.fields() | self.state_fields(samples)
+        frame, info = self.columns(record, self.cut_force(record), self.drive_torque(record))
         info.update(steps=nstep, preroll_steps_used=self.preroll, wall_time_s=wall,
-                    nan_free=bool(np.all(np.isfinite(samples))))
+                    nan_free=bool(np.all(np.isfinite(states))))
         return frame, info
+
+    def state_fields(self, states: np.ndarray) -> dict[str, np.ndarray]:
+        """time, qpos and qvel from full physics states (concatenated in
+        the order of the mjtState bits)."""
+        m = self.m
+        size = lambda spec: mujoco.mj_stateSize(m, spec)
+        qpos = size(mujoco.mjtState.mjSTATE_TIME)
+        qvel = qpos + size(mujoco.mjtState.mjSTATE_QPOS)
+        return {"time": states[:, 0], "qpos": states[:, qpos:qvel], "qvel": states[:, qvel:qvel + m.nv]}
 
     def inverse(self) -> tuple[pd.DataFrame, dict[str, Any]]:
         m, d = self.m, self.d
         m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
-        motion = self.mech.motion(self.times)
+        motion = raw_columns(self.mech.motion(self.times))
         coords = coordinates(self.mech, self.topo, motion)
         dofs = [m.jnt_dofadr[self.jid[tj.joint.name]] for tj in self.topo.tree]
         site_i, site_j = (self.sid[s] for s in sites(self.topo.cut))
         jac_i, jac_j = np.zeros((3, m.nv)), np.zeros((3, m.nv))
         e_drive = np.eye(m.nv)[:, m.jnt_dofadr[self.jid[self.drive.joint.name]]]
-        (record, pairs), cut_force, torque = self.recorder(), np.empty((len(self.times), 2)), np.empty(len(self.times))
+        snapshot = Snapshot(m, d, RECORDED + ("qpos", "qvel"), len(self.times))
+        cut_force, torque = np.empty((len(self.times), 2)), np.empty(len(self.times))
         start = time.perf_counter()
         for k in range(len(self.times)):
             mujoco.mj_resetData(m, d)
@@ -246,10 +292,10 @@ class Model:
             tau, lx, ly = np.linalg.lstsq(basis, d.qfrc_inverse[dofs], rcond=None)[0]
             self.apply_loop_force(np.array([lx, ly]))
             mujoco.mj_rnePostConstraint(m, d)
-            self.snapshot(pairs, k)
+            snapshot.take(k)
             cut_force[k] = lx, ly
             torque[k] = self.drive.sign * tau
-        frame, info = self.columns(record, cut_force, torque)
+        frame, info = self.columns(snapshot.fields() | {"time": self.times}, cut_force, torque)
         info.update(wall_time_s=time.perf_counter() - start)
         return frame, info
 
@@ -270,28 +316,24 @@ class Model:
 
     # -- read-out -----------------------------------------------------------------
 
-    def efc_rows(self, eq_id: int) -> np.ndarray:
-        """Indices of the efc rows of the equality `eq_id` (fixed layout:
-        equality rows only, in model order)."""
-        d = self.d
-        return np.flatnonzero((d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
-                              & (d.efc_id[:d.nefc] == eq_id))
+    def cut_force(self, S: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Fij (n, 2) of the cut pin: the `connect` force on site1's body,
+        body_j (its efc_force rows, which mj_rnePostConstraint adds to
+        cfrc_ext of body_j and, negated, of body_i; nothing else is
+        external in a forward run, so the force part is that force, bit
+        for bit)."""
+        cut = self.topo.cut
+        if cut.body_j != GROUND:
+            return S["cfrc_ext"][:, self.bid[cut.body_j], 3:5]
+        return -S["cfrc_ext"][:, self.bid[cut.body_i], 3:5]
 
-    def recorder(self) -> tuple[dict[str, np.ndarray], list[tuple[np.ndarray, np.ndarray]]]:
-        """Arrays (samples × field shape) for the data fields the read-out
-        needs, and (destination, live view of the field) pairs for
-        `snapshot`: the views are taken once, as each attribute access
-        creates a new array wrapper, which dominates the per-sample cost."""
-        views = {k: getattr(self.d, k) for k in RECORDED}
-        record = {k: np.empty((len(self.times),) + np.shape(v)) for k, v in views.items()}
-        return record, [(record[k], views[k]) for k in RECORDED]
-
-    @staticmethod
-    def snapshot(pairs: list[tuple[np.ndarray, np.ndarray]], k: int) -> None:
-        """Store the recorded fields as sample k (after mj_forward/mj_inverse
-        and mj_rnePostConstraint)."""
-        for record, view in pairs:
-            record[k] = view
+    def drive_torque(self, S: Mapping[str, np.ndarray]) -> np.ndarray:
+        """T (n,): the drive equality's force λ on the drive hinge
+        coordinate, T = sign·λ. The equality q_drive − sign·q_clock = 0 is
+        the only constraint on the clock, so its generalized constraint
+        force there is −sign·λ exactly."""
+        clock_dof = self.m.jnt_dofadr[self.jid[CLOCK]]
+        return -S["qfrc_constraint"][:, clock_dof]
 
     def columns(self, S: Mapping[str, np.ndarray], cut_force: np.ndarray,
                 drive_torque: np.ndarray) -> tuple[pd.DataFrame, dict[str, Any]]:
@@ -301,8 +343,19 @@ class Model:
         m, mech = self.m, self.mech
         gravity = np.zeros(3) if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else m.opt.gravity
         col: dict[str, np.ndarray] = {"t": self.times}
-        for body, bid in self.bid.items():
-            theta = omega = alpha = 0.0
+        # cvel/cacc are spatial vectors at the root's subtree_com: shift to
+        # the body origin, make the acceleration classical (+ ω × v), and add
+        # back gravity (cacc carries −g from the world, accelerometer style).
+        # All bodies at once: numpy's cost here is per call, not per number.
+        bids = np.fromiter(self.bid.values(), dtype=int)
+        r = S["xpos"][:, bids] - S["subtree_com"][:, m.body_rootid[bids]]
+        w, v_c = S["cvel"][:, bids, :3], S["cvel"][:, bids, 3:]
+        dw, a_c = S["cacc"][:, bids, :3], S["cacc"][:, bids, 3:]
+        v = v_c + cross(w, r)
+        a = a_c + cross(dw, r) + cross(w, v) + gravity
+        zero = np.zeros(len(self.times))
+        for k, (body, bid) in enumerate(self.bid.items()):
+            theta = omega = alpha = zero
             for tj in self.topo.path(body):
                 jid = self.jid[tj.joint.name]
                 if tj.joint.kind == "revolute":
@@ -311,18 +364,10 @@ class Model:
                     alpha = alpha + S["qacc"][:, m.jnt_dofadr[jid]]
                 else:
                     theta = theta + tj.rel0
-            # cvel/cacc are spatial vectors at the root's subtree_com: shift to
-            # the body origin, make the acceleration classical (+ ω × v), and
-            # add back gravity (cacc carries −g from the world, accelerometer style).
-            r = S["xpos"][:, bid] - S["subtree_com"][:, m.body_rootid[bid]]
-            w, v_c = S["cvel"][:, bid, :3], S["cvel"][:, bid, 3:]
-            dw, a_c = S["cacc"][:, bid, :3], S["cacc"][:, bid, 3:]
-            v = v_c + np.cross(w, r)
-            a = a_c + np.cross(dw, r) + np.cross(w, v) + gravity
             col.update({f"{body}.x": S["xpos"][:, bid, 0], f"{body}.y": S["xpos"][:, bid, 1],
-                        f"{body}.theta": np.broadcast_to(theta, self.times.shape).astype(float),
-                        f"{body}.vx": v[:, 0], f"{body}.vy": v[:, 1], f"{body}.omega": omega + 0.0 * self.times,
-                        f"{body}.ax": a[:, 0], f"{body}.ay": a[:, 1], f"{body}.alpha": alpha + 0.0 * self.times})
+                        f"{body}.theta": theta, f"{body}.vx": v[:, k, 0], f"{body}.vy": v[:, k, 1],
+                        f"{body}.omega": omega, f"{body}.ax": a[:, k, 0], f"{body}.ay": a[:, k, 1],
+                        f"{body}.alpha": alpha})
         # Only x, y forces and the z couple: the out-of-plane reactions of a
         # planar loop closed in 3D are statically indeterminate, so MuJoCo's
         # values there are legitimate but arbitrary and are not reported.
@@ -334,7 +379,7 @@ class Model:
                 # point: it has no moment about that point, so the couple is
                 # the whole moment there, and the reaction force is the rest.
                 p_j = S["site_xpos"][:, self.sid[sites(tj.joint)[1]]]
-                moment = torque + np.cross(S["subtree_com"][:, m.body_rootid[bid]] - p_j, force)
+                moment = torque + cross(S["subtree_com"][:, m.body_rootid[bid]] - p_j, force)
                 col[f"{name}.M"] = tj.sign * (moment[:, 2] - self.cut_damper_couple(tj.child, col))
                 force = force - S["qfrc_passive"][:, m.jnt_dofadr[jid], None] * S["xaxis"][:, jid]
             col[f"{name}.Fx"], col[f"{name}.Fy"] = tj.sign * force[:, 0], tj.sign * force[:, 1]
@@ -342,9 +387,14 @@ class Model:
         col[f"{cut}.Fx"], col[f"{cut}.Fy"] = cut_force[:, 0], cut_force[:, 1]
         col[DRIVE_TORQUE] = drive_torque
         col["health.gap"] = self.gaps(S["site_xpos"], col)
-        frame = pd.DataFrame(col)[["t"] + mech.motion_columns() + mech.reaction_columns() + ["health.gap"]]
+        names = ["t"] + mech.motion_columns() + mech.reaction_columns() + ["health.gap"]
+        # One 2-D block: a DataFrame from a dict of columns costs milliseconds.
+        block = np.empty((len(self.times), len(names)))
+        for k, name in enumerate(names):
+            block[:, k] = col[name]
+        frame = pd.DataFrame(block, columns=names)
         drive_q = S["qpos"][:, m.jnt_qposadr[self.jid[self.drive.joint.name]]]
-        info = {"closure_gap_max": float(frame["health.gap"].max()),
+        info = {"closure_gap_max": float(col["health.gap"].max()),
                 "drive_error_max": float(np.abs(self.drive.sign * drive_q - mech.drive.law.angle(self.times)).max()),
                 "time_stamp_error_max": float(np.abs(S["time"] - self.times).max())}
         return frame, info

@@ -100,7 +100,7 @@ class Topology:
         return path
 
 
-def topology(mech: Mechanism, motion0: pd.DataFrame) -> Topology:
+def topology(mech: Mechanism, motion0: Mapping[str, np.ndarray]) -> Topology:
     """Cut the single loop at the last revolute pin (not the drive) that
     leaves a spanning tree; `motion0` (one instant) fixes prismatic pairs'
     relative rotation."""
@@ -114,7 +114,7 @@ def topology(mech: Mechanism, motion0: pd.DataFrame) -> Topology:
                      "revolute pin other than the drive")
 
 
-def _spanning_tree(mech: Mechanism, cut: Joint, motion0: pd.DataFrame) -> tuple[TreeJoint, ...] | None:
+def _spanning_tree(mech: Mechanism, cut: Joint, motion0: Mapping[str, np.ndarray]) -> tuple[TreeJoint, ...] | None:
     remaining = [j for j in mech.joints if j is not cut]
     reached, order, queue = {GROUND}, [], deque([GROUND])
     while queue:
@@ -133,8 +133,14 @@ def _spanning_tree(mech: Mechanism, cut: Joint, motion0: pd.DataFrame) -> tuple[
     return tuple(order) if not remaining and len(reached) == len(mech.bodies) + 1 else None
 
 
-def _angle(motion: pd.DataFrame, body: str) -> float:
-    return 0.0 if body == GROUND else float(motion[f"{body}.theta"].iloc[0])
+def _angle(motion: Mapping[str, np.ndarray], body: str) -> float:
+    return 0.0 if body == GROUND else float(motion[f"{body}.theta"][0])
+
+
+def raw_columns(motion: pd.DataFrame) -> dict[str, np.ndarray]:
+    """The reference motion as raw column name → array: column access on a
+    DataFrame costs microseconds each, and the model build does hundreds."""
+    return dict(zip(motion.columns, motion.to_numpy().T))
 
 
 def _quat_z(angle: float) -> str:
@@ -247,7 +253,8 @@ def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], dt: float
 </mujoco>"""
 
 
-def coordinates(mech: Mechanism, topo: Topology, motion: pd.DataFrame) -> dict[str, tuple[np.ndarray, ...]]:
+def coordinates(mech: Mechanism, topo: Topology,
+                motion: Mapping[str, np.ndarray]) -> dict[str, tuple[np.ndarray, ...]]:
     """Reference (q, q̇, q̈) of every tree joint and the clock, from the
     reference body motion (used for the initial state and inverse mode).
 
@@ -255,8 +262,9 @@ def coordinates(mech: Mechanism, topo: Topology, motion: pd.DataFrame) -> dict[s
     of P_j from P_i along the axis u (body_i frame, rotating with ω_i):
     ṡ = ṙ·u + r·u̇, s̈ = r̈·u + 2ṙ·u̇ + r·ü, u̇ = ω_i k×u, ü = α_i k×u − ω_i² u.
     """
-    zero = np.zeros(len(motion))
-    rate = lambda b, q: zero if b == GROUND else motion[f"{b}.{q}"].to_numpy()
+    t = motion["t"]
+    zero = np.zeros(len(t))
+    rate = lambda b, q: zero if b == GROUND else motion[f"{b}.{q}"]
     out = {}
     for tj in topo.tree:
         j = tj.joint
@@ -277,7 +285,6 @@ def coordinates(mech: Mechanism, topo: Topology, motion: pd.DataFrame) -> dict[s
         sd = dot(rd, (ux, uy)) + dot(r, ud)
         sdd = dot(rdd, (ux, uy)) + 2 * dot(rd, ud) + dot(r, udd)
         out[j.name] = (tj.sign * s, tj.sign * sd, tj.sign * sdd)
-    t = motion["t"].to_numpy()
     law = mech.drive.law
     out[CLOCK] = (law.angle(t), law.rate(t), law.acceleration(t))
     return out

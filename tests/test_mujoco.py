@@ -218,3 +218,62 @@ def test_prismatic_joint_between_moving_bodies(engine, mode, goal):
         error = np.abs(raw.frame[column] - expected[column]).max() / (np.abs(expected[column]).max() or 1.0)
         assert error <= goal, f"{column}: {error:.3g} relative"
     assert raw.info["closure_gap_max"] < 1e-6
+
+
+def forward_states(model: Model, count: int) -> np.ndarray:
+    """`count` states along a short forward rollout of `model`."""
+    from mujoco import rollout
+    states = rollout.rollout(model.m, model.d, model.initial_state()[None, :], nstep=model.nstep)[0][0]
+    return states[:: max(1, len(states) // count)][:count]
+
+
+@pytest.mark.parametrize("name", ["fourbar-damped", "hand-pump"])
+def test_read_out_is_the_native_data(engine, name):
+    """The read-out's one-piece copy holds each mjData field bit for bit, and
+    the cut force and drive torque it reads from cfrc_ext and
+    qfrc_constraint are the equalities' efc_force rows bit for bit."""
+    from mechval.engines.mujoco import FULL, RECORDED
+    from mechval.engines.mujoco_snapshot import Snapshot
+    model, _ = built_model(engine, builtin_scenario(name))
+    m, d = model.m, model.d
+    states = forward_states(model, 5)
+    snapshot = Snapshot(m, d, RECORDED, len(states))
+    expected = {field: [] for field in RECORDED}
+    efc = []
+    for k, state in enumerate(states):
+        mujoco.mj_setState(m, d, state, FULL)
+        mujoco.mj_forward(m, d)
+        mujoco.mj_rnePostConstraint(m, d)
+        snapshot.take(k)
+        for field in RECORDED:
+            expected[field].append(getattr(d, field).copy())
+        rows = lambda eq: np.flatnonzero((d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & (d.efc_id == eq))
+        efc.append(np.concatenate([d.efc_force[rows(model.loop_eq)][:2], d.efc_force[rows(model.drive_eq)][:1]]))
+    fields, efc = snapshot.fields(), np.array(efc)
+    for field in RECORDED:
+        np.testing.assert_array_equal(fields[field], np.array(expected[field]), err_msg=field)
+    np.testing.assert_array_equal(model.cut_force(fields), efc[:, :2])
+    np.testing.assert_array_equal(model.drive_torque(fields), model.drive.sign * efc[:, 2])
+
+
+def test_snapshot_refuses_fields_outside_the_data_buffer(engine):
+    from mechval.engines.mujoco_snapshot import Snapshot
+    model, _ = built_model(engine, builtin_scenario("slider-crank"))
+    mujoco.mj_forward(model.m, model.d)
+    with pytest.raises(ValueError, match="one mjData buffer"):
+        Snapshot(model.m, model.d, ("qacc", "efc_force"), 3)          # efc_* live in the arena
+    with pytest.raises(ValueError, match="one mjData buffer"):
+        Snapshot(model.m, model.d, ("qacc", "body_awake"), 3)         # not float
+
+
+def test_a_blow_up_is_reported_not_logged_to_the_working_directory(engine, tmp_path, monkeypatch):
+    """Euler with the drive's solref at 1·dt is unstable (ENGINE_NOTES): its
+    warnings land in the run's info, not in ./MUJOCO_LOG.TXT or stdout."""
+    monkeypatch.chdir(tmp_path)
+    scenario = builtin_scenario("slider-crank")
+    mech = build_mechanism(scenario)
+    settings = {**engine.settings_for(scenario, mech), "integrator": "Euler"}
+    raw = engine.run(mech, scenario.time.t, settings)
+    assert raw.info["warnings"] > 0 and "unstable" in raw.info["first_warning"]
+    assert not list(tmp_path.iterdir())
+    assert mujoco.get_mju_user_warning() is None                      # MuJoCo's default restored

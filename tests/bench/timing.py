@@ -18,14 +18,19 @@ def timed(fn: Callable[[], object]) -> Callable[[], float]:
     return run
 
 
-def best_times(repeats: int, *runs: Callable[[], float]) -> list[float]:
-    """Best of `repeats` for each run (each returns the time it measured),
-    the runs interleaved in every round so that all see the same load."""
-    best = [float("inf")] * len(runs)
+def interleaved_times(repeats: int, *runs: Callable[[], float]) -> list[list[float]]:
+    """`repeats` times of each run (each returns the time it measured), the
+    runs interleaved in every round so that all see the same load."""
+    times: list[list[float]] = [[] for _ in runs]
     for _ in range(repeats):
         for k, run in enumerate(runs):
-            best[k] = min(best[k], run())
-    return best
+            times[k].append(run())
+    return times
+
+
+def best_times(repeats: int, *runs: Callable[[], float]) -> list[float]:
+    """Best of `repeats` interleaved rounds for each run."""
+    return [min(times) for times in interleaved_times(repeats, *runs)]
 
 
 def scenario_arguments(doc: str, repeats: int = 3) -> argparse.Namespace:

@@ -54,9 +54,9 @@ the step gains nothing more (5e-7).
 from __future__ import annotations
 
 import collections
-import contextlib
+import threading
 import time
-from typing import Any, ClassVar, Iterator, Mapping
+from typing import Any, ClassVar, Mapping
 
 import mujoco
 import numpy as np
@@ -133,29 +133,49 @@ class MujocoAdapter(EngineAdapter):
         model = Model(mechanism, times, settings)
         build_time = time.perf_counter() - start
         runner = model.forward if settings["mode"] == "forward" else model.inverse
-        with warnings_counted() as warnings:
+        with warnings_silenced:
             frame, info = runner()
-        info.update(warnings=sum(warnings.values()))
-        if warnings:
-            info.update(first_warning=next(iter(warnings)))
         solref = lambda eq: " ".join(f"{v:.6g}" for v in model.m.eq_solref[eq])
         info.update(build_time_s=build_time, step=model.dt, solimp=settings["solimp"],
                     solref=solref(model.loop_eq), drive_solref=solref(model.drive_eq))
         return RawRun(frame, {}, info)
 
 
-@contextlib.contextmanager
-def warnings_counted() -> Iterator[collections.Counter]:
-    """MuJoCo's warnings (e.g. "Nan, Inf or huge value in QACC ...")
-    counted for the run's info, instead of MuJoCo's default: print them and
-    append them to MUJOCO_LOG.TXT in the user's working directory."""
-    counts: collections.Counter = collections.Counter()
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda message: counts.update([message]))
-    try:
-        yield counts
-    finally:
-        mujoco.set_mju_user_warning(previous)
+class WarningsSilenced:
+    """While any run is inside, MuJoCo's warning handler discards the text:
+    by default MuJoCo prints each warning and appends it to MUJOCO_LOG.TXT
+    in the user's working directory. The handler is process-wide, so
+    overlapping runs (threads) share one installation, counted under a
+    lock; the warnings themselves are counted per run from mjData.warning
+    (`Model.warnings`)."""
+
+    def __init__(self) -> None:
+        self.lock, self.users, self.previous = threading.Lock(), 0, None
+
+    def __enter__(self) -> None:
+        with self.lock:
+            if self.users == 0:
+                self.previous = mujoco.get_mju_user_warning()
+                mujoco.set_mju_user_warning(lambda message: None)
+            self.users += 1
+
+    def __exit__(self, *exc: object) -> None:
+        with self.lock:
+            self.users -= 1
+            if self.users == 0:
+                mujoco.set_mju_user_warning(self.previous)
+
+
+warnings_silenced = WarningsSilenced()
+
+
+def warning_info(counts: collections.Counter) -> dict[str, Any]:
+    """Run-info entries: how many warnings MuJoCo raised and, if any, of
+    which kinds (e.g. mjWARN_BADQACC: a NaN, Inf or huge acceleration)."""
+    info: dict[str, Any] = {"warnings": sum(counts.values())}
+    if counts:
+        info["warning_kinds"] = ", ".join(f"{kind} ×{n}" for kind, n in counts.items())
+    return info
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -243,11 +263,11 @@ class Model:
         wall = time.perf_counter() - start
         # Sample k is the state after step preroll + k·substeps; states[i]
         # is the state after step i + 1 (state0 is after none).
-        steps = self.preroll + self.substeps * np.arange(len(self.times))
-        samples = states[np.maximum(steps - 1, 0)]
-        if steps[0] == 0:
-            samples[0] = state0
-        snapshot = Snapshot(m, d, RECORDED, len(samples))
+        after = self.preroll + self.substeps * np.arange(len(self.times))
+        samples = np.empty((len(after), len(state0)))
+        samples[after == 0] = state0
+        samples[after > 0] = states[after[after > 0] - 1]
+        snapshot = Snapshot(d, RECORDED, len(samples))
         for k, state in enumerate(samples):
             mujoco.mj_setState(m, d, state, FULL)
             mujoco.mj_forward(m, d)
@@ -255,9 +275,15 @@ class Model:
             snapshot.take(k)
         record = snapshot.fields() | self.state_fields(samples)
         frame, info = self.columns(record, self.cut_force(record), self.drive_torque(record))
+        info.update(warning_info(self.warning_counts()))    # rollout and read-out: the rollout resets them
         info.update(steps=nstep, preroll_steps_used=self.preroll, wall_time_s=wall,
                     nan_free=bool(np.all(np.isfinite(states))))
         return frame, info
+
+    def warning_counts(self) -> collections.Counter:
+        """MuJoCo's warnings in the data since it was last reset, by kind."""
+        return collections.Counter({mujoco.mjtWarning(i).name: w.number
+                                    for i, w in enumerate(self.d.warning) if w.number})
 
     def state_fields(self, states: np.ndarray) -> dict[str, np.ndarray]:
         """time, qpos and qvel from full physics states (concatenated in
@@ -277,10 +303,12 @@ class Model:
         site_i, site_j = (self.sid[s] for s in sites(self.topo.cut))
         jac_i, jac_j = np.zeros((3, m.nv)), np.zeros((3, m.nv))
         e_drive = np.eye(m.nv)[:, m.jnt_dofadr[self.jid[self.drive.joint.name]]]
-        snapshot = Snapshot(m, d, RECORDED + ("qpos", "qvel"), len(self.times))
+        snapshot = Snapshot(d, RECORDED + ("qpos", "qvel"), len(self.times))
         cut_force, torque = np.empty((len(self.times), 2)), np.empty(len(self.times))
+        warnings: collections.Counter = collections.Counter()
         start = time.perf_counter()
         for k in range(len(self.times)):
+            warnings += self.warning_counts()           # before mj_resetData clears them
             mujoco.mj_resetData(m, d)
             self.set_reference(motion, k, coords)
             mujoco.mj_inverse(m, d)
@@ -296,7 +324,7 @@ class Model:
             cut_force[k] = lx, ly
             torque[k] = self.drive.sign * tau
         frame, info = self.columns(snapshot.fields() | {"time": self.times}, cut_force, torque)
-        info.update(wall_time_s=time.perf_counter() - start)
+        info.update(warning_info(warnings + self.warning_counts()), wall_time_s=time.perf_counter() - start)
         return frame, info
 
     def apply_loop_force(self, force: np.ndarray) -> None:

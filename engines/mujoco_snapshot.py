@@ -4,10 +4,13 @@ The read-out stores about a dozen small mjData arrays at every sample. A
 numpy assignment costs about a microsecond whatever its size, so copying
 them one by one was most of the read-out's Python cost (a quarter of the
 adapter's overhead on a 400-sample run). mjData keeps its fixed-size arrays
-(the `MJDATA_POINTERS` of mjdata.h) in one buffer that does not move for the
-life of the data, so the fields lie within one span of at most
-`MjModel.nbuffer` bytes: a single view of that span, copied once per
-sample, holds them all at fixed offsets.
+(`MJDATA_POINTERS` in mjxmacro.h, `qpos` first) in one buffer of
+`MjData.nbuffer` bytes that does not move for the life of the data, so a
+single view of the span that holds the wanted fields, copied once per
+sample, takes them all. The span also holds fields nobody wants (about 5×
+the wanted bytes), so it is copied into a small block that is unpacked into
+per-field arrays every `CHUNK` samples: memory grows with the wanted fields
+only.
 """
 
 from __future__ import annotations
@@ -17,28 +20,39 @@ import ctypes
 import mujoco
 import numpy as np
 
+#: Samples per block (a few MB of span copies at most).
+CHUNK = 256
+
 
 class Snapshot:
     """`take(k)` stores the current values of `fields` (fixed-size float
-    mjData arrays) as sample k of n; `fields()` returns them as arrays of
-    shape (n,) + field shape."""
+    mjData arrays) as sample k of n, in order; `fields()` returns them as
+    arrays of shape (n,) + field shape once all n are taken."""
 
-    def __init__(self, m: mujoco.MjModel, d: mujoco.MjData, fields: tuple[str, ...], n: int):
+    def __init__(self, d: mujoco.MjData, fields: tuple[str, ...], n: int):
         views = {name: getattr(d, name) for name in fields}
         start = min(v.ctypes.data for v in views.values())
         end = max(v.ctypes.data + v.nbytes for v in views.values())
+        buffer = d.qpos.ctypes.data
         if (any(v.dtype != np.float64 or (v.ctypes.data - start) % 8 for v in views.values())
-                or end - start > m.nbuffer):
+                or start < buffer or end > buffer + d.nbuffer):
             raise ValueError(f"mujoco: {fields} are not float arrays of one mjData buffer")
         self.data = d                            # the span is only valid while d lives
         self.span = np.ctypeslib.as_array((ctypes.c_double * ((end - start) // 8)).from_address(start))
         self.layout = {name: ((v.ctypes.data - start) // 8, v.shape) for name, v in views.items()}
-        self.rows = np.empty((n, len(self.span)))
+        self.n, self.block = n, np.empty((min(n, CHUNK), len(self.span)))
+        self.out = {name: np.empty((n,) + v.shape) for name, v in views.items()}
 
     def take(self, k: int) -> None:
-        self.rows[k] = self.span
+        row = k % len(self.block)
+        self.block[row] = self.span
+        if row == len(self.block) - 1 or k == self.n - 1:
+            self.unpack(k - row, row + 1)
+
+    def unpack(self, first: int, count: int) -> None:
+        for name, (offset, shape) in self.layout.items():
+            size = int(np.prod(shape))
+            self.out[name][first:first + count] = self.block[:count, offset:offset + size].reshape((count,) + shape)
 
     def fields(self) -> dict[str, np.ndarray]:
-        n = len(self.rows)
-        return {name: self.rows[:, offset:offset + int(np.prod(shape))].reshape((n,) + shape)
-                for name, (offset, shape) in self.layout.items()}
+        return self.out

@@ -167,10 +167,12 @@ def test_scenario_table_overrides_settings(engine):
 
 # -- a prismatic joint between two moving bodies --------------------------------
 
-def inverted_slider_crank(damping: float) -> Mechanism:
+def inverted_slider_crank(damping: float, o4_on_ground: bool = False) -> Mechanism:
     """A block pinned to the crank at A slides along a rocker pivoted at O4
     (whitworth quick-return). Kinematics from r = A − O4 = (a·cosθ2 − d,
-    a·sinθ2): θ4 = arg r, ω4 = (r × v)/|r|², α4 = (r × acc)/|r|² − 2ω4(r·v)/|r|²."""
+    a·sinθ2): θ4 = arg r, ω4 = (r × v)/|r|², α4 = (r × acc)/|r|² − 2ω4(r·v)/|r|².
+    `o4_on_ground` orders O4 as (rocker, ground): its reaction is then the
+    force on the ground, and the pin MuJoCo cuts has body_j = ground."""
     a, d, law = 0.1, 0.3, DriveLaw(0.3, 8.0, 2.0)
 
     def motion(t: np.ndarray) -> pd.DataFrame:
@@ -200,14 +202,16 @@ def inverted_slider_crank(damping: float) -> Mechanism:
     joints = (Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damping),
               Joint("A", "revolute", "block", "crank", (0.0, 0.0), (a, 0.0), damping=damping),
               Joint("guide", "prismatic", "rocker", "block", (0.0, 0.0), (0.0, 0.0), (1.0, 0.0), damping=damping),
-              Joint("O4", "revolute", GROUND, "rocker", (d, 0.0), (0.0, 0.0), damping=damping))
+              Joint("O4", "revolute", "rocker", GROUND, (0.0, 0.0), (d, 0.0), damping=damping) if o4_on_ground
+              else Joint("O4", "revolute", GROUND, "rocker", (d, 0.0), (0.0, 0.0), damping=damping))
     return Mechanism("inverted-slider-crank", "inverted_slider_crank", bodies, joints, Drive("O2", law),
                      (0.0, -9.81), motion, {})
 
 
+@pytest.mark.parametrize("o4_on_ground", [False, True])
 @pytest.mark.parametrize("mode, goal", [("inverse", INVERSE_AGREEMENT), ("forward", 1e-4)])
-def test_prismatic_joint_between_moving_bodies(engine, mode, goal):
-    mech = inverted_slider_crank(damping=0.05)
+def test_prismatic_joint_between_moving_bodies(engine, mode, goal, o4_on_ground):
+    mech = inverted_slider_crank(damping=0.05, o4_on_ground=o4_on_ground)
     times = np.linspace(0.0, 1.0, 101)
     raw = engine.run(mech, times, {**engine.default_settings(mech, times), "mode": mode})
     motion = mech.motion(times)
@@ -228,16 +232,19 @@ def forward_states(model: Model, count: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("name", ["fourbar-damped", "hand-pump"])
-def test_read_out_is_the_native_data(engine, name):
-    """The read-out's one-piece copy holds each mjData field bit for bit, and
-    the cut force and drive torque it reads from cfrc_ext and
-    qfrc_constraint are the equalities' efc_force rows bit for bit."""
+def test_read_out_is_the_native_data(engine, name, monkeypatch):
+    """The read-out's one-piece copy holds each mjData field bit for bit
+    (across its blocks: 2 samples per block here), and the cut force and
+    drive torque it reads from cfrc_ext and qfrc_constraint are the
+    equalities' efc_force rows bit for bit."""
+    from mechval.engines import mujoco_snapshot
     from mechval.engines.mujoco import FULL, RECORDED
     from mechval.engines.mujoco_snapshot import Snapshot
+    monkeypatch.setattr(mujoco_snapshot, "CHUNK", 2)
     model, _ = built_model(engine, builtin_scenario(name))
     m, d = model.m, model.d
     states = forward_states(model, 5)
-    snapshot = Snapshot(m, d, RECORDED, len(states))
+    snapshot = Snapshot(d, RECORDED, len(states))
     expected = {field: [] for field in RECORDED}
     efc = []
     for k, state in enumerate(states):
@@ -261,9 +268,9 @@ def test_snapshot_refuses_fields_outside_the_data_buffer(engine):
     model, _ = built_model(engine, builtin_scenario("slider-crank"))
     mujoco.mj_forward(model.m, model.d)
     with pytest.raises(ValueError, match="one mjData buffer"):
-        Snapshot(model.m, model.d, ("qacc", "efc_force"), 3)          # efc_* live in the arena
+        Snapshot(model.d, ("qacc", "efc_force"), 3)          # efc_* live in the arena
     with pytest.raises(ValueError, match="one mjData buffer"):
-        Snapshot(model.m, model.d, ("qacc", "body_awake"), 3)         # not float
+        Snapshot(model.d, ("qacc", "body_awake"), 3)         # not float
 
 
 def test_a_blow_up_is_reported_not_logged_to_the_working_directory(engine, tmp_path, monkeypatch):
@@ -274,6 +281,31 @@ def test_a_blow_up_is_reported_not_logged_to_the_working_directory(engine, tmp_p
     mech = build_mechanism(scenario)
     settings = {**engine.settings_for(scenario, mech), "integrator": "Euler"}
     raw = engine.run(mech, scenario.time.t, settings)
-    assert raw.info["warnings"] > 0 and "unstable" in raw.info["first_warning"]
+    assert raw.info["warnings"] > 0 and "mjWARN_BADQACC" in raw.info["warning_kinds"]
     assert not list(tmp_path.iterdir())
     assert mujoco.get_mju_user_warning() is None                      # MuJoCo's default restored
+
+
+def test_overlapping_runs_share_the_warning_silencer(engine):
+    """Threads running at once (a Dask worker with several threads) install
+    the handler once and restore MuJoCo's default only when the last
+    leaves, whatever the order."""
+    from mechval.engines.mujoco import warnings_silenced
+    first, second = warnings_silenced, warnings_silenced
+    first.__enter__()
+    second.__enter__()
+    first.__exit__(None, None, None)
+    assert mujoco.get_mju_user_warning() is not None
+    second.__exit__(None, None, None)
+    assert mujoco.get_mju_user_warning() is None
+
+
+def test_a_single_instant_without_pre_roll(engine):
+    """One sample and no pre-roll: no step at all, the read-out of the
+    reference state itself."""
+    scenario = builtin_scenario("fourbar-seed")
+    mech = build_mechanism(scenario)
+    settings = {**engine.default_settings(mech, scenario.time.t), "preroll_timeconsts": 0.0}
+    raw = engine.run(mech, scenario.time.t[:1], settings)
+    assert raw.info["steps"] == 0 and len(raw.frame) == 1
+    assert np.all(np.isfinite(raw.frame.to_numpy()))

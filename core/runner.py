@@ -80,7 +80,10 @@ def run_tasks(tasks: list[Task], workers: int, timeout: float,
               on_done: Callable[[Outcome], None] = lambda outcome: None) -> list[Outcome]:
     """Run every task in a worker process; failures become Outcomes."""
     def outcome(task: Task, done: Done) -> Outcome:
-        return Outcome(task, None, done.error) if done.error else Outcome(task, *done.value)
+        if done.error:
+            return Outcome(task, None, done.error)
+        signals, wall_time = done.value
+        return Outcome(task, signals, wall_time=wall_time)
 
     results = LocalExecutor(workers, timeout).run(
         simulate_task, tasks, lambda index, done: on_done(outcome(tasks[index], done)))

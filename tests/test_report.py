@@ -46,6 +46,8 @@ def test_failing_engines_fail_only_their_own_rows(fakes, scene):
     assert verdicts["faithful"] == {"pass"}
     for engine in ("crashing", "hanging", "raising", "nonfinite"):
         assert "fail" in verdicts[engine], engine
+    faithful = next(o for o in outcomes if o.task.engine == "faithful")
+    assert faithful.error == "" and faithful.wall_time > 0            # no "FAILED" on the progress bar
     reasons = {o.task.engine: o.error for o in outcomes}
     assert "crashed" in reasons["crashing"] and "timed out" in reasons["hanging"]
     assert "solver diverged" in reasons["raising"]

@@ -1,4 +1,4 @@
-"""Reading a cost table (`mechval.cost`): observed convergence orders, the
+"""Reading a cost table (`mechval.harness.cost`): observed convergence orders, the
 cheapest setting that reaches each error target, and both as terminal text.
 
 Observed order: the least-squares slope of log error against log step over
@@ -18,7 +18,15 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-from .cost import CLASS_ORDER, HEADLINE, REFERENCE, TARGETS
+#: The cost table's columns (`mechval.harness.cost.sweep` fills it).
+COLUMNS = ["scenario", "engine", "version", "variant", "step_s", "steps_per_sample", "default", "class", "error",
+           "error_kind", "worst_signal", "s_per_sim_s", "s_per_sim_s_min", "s_per_sim_s_max",
+           "vs_reference", "build_s", "engine_s_per_sim_s", "repeats", "failure"]
+REFERENCE = "reference"
+HEADLINE = "force+torque"
+CLASS_ORDER = ("angle", "position", "velocity", "acceleration", "force", "torque", HEADLINE)
+#: Error targets of the cheapest-setting table (relative, or rad / m).
+TARGETS = (1e-2, 1e-3, 1e-4, 1e-6)
 
 MIN_ORDER = 0.5
 ORDER_SPREAD = 0.5

@@ -23,6 +23,7 @@ import pandas as pd
 
 from mechval.health import health
 from mechval.linkages import build_mechanism
+from mechval.kinematics import step_rate
 from mechval.mechanism import Mechanism
 from mechval.scenario import Scenario, ScenarioError
 from mechval.signals import Signals, canonical_signals
@@ -138,24 +139,6 @@ def native_output_silenced():
         for fd, copy in saved.items():
             os.dup2(copy, fd)
             os.close(copy)
-
-
-def step_rate(mechanism: Mechanism, times: np.ndarray, dense: int = 20001) -> float:
-    """Ω: the largest over the run and the links of |ω|, √|α| and ∛|jerk|
-    (rad/s), from the reference kinematics on a dense grid.
-
-    Speed alone misjudges sharp motion at moderate speed (near the Grashof
-    change point), hence the α and jerk terms (ENGINE_NOTES, "step rule").
-    """
-    t = np.linspace(float(times[0]), float(times[-1]), dense)
-    motion = mechanism.motion(t)
-    rate = 0.0
-    for body in mechanism.bodies:
-        w = motion[f"{body.name}.omega"].to_numpy()
-        al = motion[f"{body.name}.alpha"].to_numpy()
-        jerk = np.gradient(al, t)
-        rate = max(rate, np.abs(w).max(), np.sqrt(np.abs(al).max()), np.cbrt(np.abs(jerk).max()))
-    return float(rate)
 
 
 def default_step(mechanism: Mechanism, times: np.ndarray, rad_per_step: float = 0.01,

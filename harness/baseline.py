@@ -27,9 +27,9 @@ import numpy as np
 import pandas as pd
 from packaging.version import InvalidVersion, Version
 
-from .compare import compare
-from .scenario import Scenario, Tolerance
-from .signals import SIGNAL_CLASS, Signals, write_atomically
+from mechval.compare import compare
+from mechval.scenario import Scenario, Tolerance
+from mechval.signals import SIGNAL_CLASS, Signals, write_atomically
 
 #: Default regression threshold: max |new − stored| ≤ RTOL · peak, with peak
 #: the stored signal's max |value| over the run. Measured on the committed

@@ -1,6 +1,6 @@
 """`mechval baseline save|check`: run engines in worker processes, store
 their signals as baselines, or compare a new run with the stored one and say
-what changed (the rule itself is `mechval.baseline.compare_to_baseline`).
+what changed (the rule itself is `mechval.harness.baseline.compare_to_baseline`).
 """
 
 from __future__ import annotations
@@ -11,10 +11,18 @@ from typing import Any, Mapping
 
 import pandas as pd
 
+from mechval.engines.registry import adapter, adapter_class
+from mechval.linkages import build_mechanism
+from mechval.outcome import Outcome, Task
+from mechval.reports.build import provenance
+from mechval.signals import Signals
+
 from . import baseline as bl
-from .linkages import build_mechanism
-from .runner import Outcome, Task, references_for, run_tasks, tasks_for
-from .signals import SIGNAL_CLASS, Signals
+from .runner import references_for, run_tasks, tasks_for
+
+class BaselinesExist(Exception):
+    """`save` without --force found baselines it would overwrite."""
+
 
 #: Seconds before an engine run is killed (as `mechval run`'s default).
 TIMEOUT = 900.0
@@ -23,16 +31,13 @@ TIMEOUT = 900.0
 def save_command(scenarios: list, engines: list[str], root: Path, force: bool, workers: int) -> int:
     """Store a baseline per scenario × engine × variant; refuse, before
     running anything, when any of them exists and `force` is not given."""
-    from mechval.engines.registry import adapter_class
-    from mechval.reports.build import provenance
-    from .cli import UsageError
     tasks = tasks_for(scenarios, engines)
     targets = [bl.baseline_path(root, t.engine, adapter_class(t.engine).version(), t.scenario.name, t.setting)
                for t in tasks]
     existing = [p for p in targets if p.exists() or p.with_suffix(".json").exists()]
     if existing and not force:
         listing = "\n".join(f"  {p}" for p in existing)
-        raise UsageError(f"{len(existing)} baseline(s) exist and were left as they are:\n{listing}\n"
+        raise BaselinesExist(f"{len(existing)} baseline(s) exist and were left as they are:\n{listing}\n"
                          "regenerate them with the same command plus --force, or name only the "
                          "scenarios/engines that have none")
     meta = provenance()
@@ -56,7 +61,6 @@ def save_command(scenarios: list, engines: list[str], root: Path, force: bool, w
 def run_metadata(task: Task, signals: Signals, provenance: Mapping[str, str]) -> dict[str, Any]:
     """`baseline.metadata` of a finished task; which recorded settings are
     inputs (not facts of the run) is what the adapter resolves for it."""
-    from mechval.engines.registry import adapter
     keys = set(adapter(task.engine).settings_for(task.scenario, build_mechanism(task.scenario), task.overrides))
     return bl.metadata(task.scenario, task.setting, task.overrides, signals, keys, provenance)
 
@@ -98,7 +102,6 @@ def check_command(scenarios: list, engines: list[str], root: Path, rtol: float |
     default); non-zero exit status on a regression, a run that failed or a
     missing baseline."""
     rtol = bl.DEFAULT_RTOL if rtol is None else rtol
-    from mechval.reports.build import provenance
     meta = provenance()
     references = references_for(scenarios)
     verdicts: dict[str, int] = {}
@@ -115,23 +118,6 @@ def check_command(scenarios: list, engines: list[str], root: Path, rtol: float |
     run_tasks(tasks_for(scenarios, engines), workers=workers, timeout=TIMEOUT, on_done=judge)
     print("baseline check: " + ", ".join(f"{v}: {n}" for v, n in sorted(verdicts.items())))
     return 0 if set(verdicts) <= {"ok"} else 1
-
-
-def parse_signal_rtol(items: list[str] | None) -> dict[str, float]:
-    """NAME=R pairs of --signal-rtol; NAME is a canonical signal (or t)."""
-    from .cli import UsageError
-    result = {}
-    for item in items or []:
-        name, _, value = item.partition("=")
-        if name not in SIGNAL_CLASS and name != "t":
-            raise UsageError(f"--signal-rtol {item}: unknown signal {name!r}")
-        try:
-            result[name] = float(value)
-        except ValueError:
-            raise UsageError(f"--signal-rtol {item}: expected NAME=NUMBER") from None
-        if not 0 <= result[name] < float("inf"):
-            raise UsageError(f"--signal-rtol {item}: must be a finite number ≥ 0")
-    return result
 
 
 def _table(frame: pd.DataFrame, index: bool = False) -> str:

@@ -3,10 +3,29 @@
 from __future__ import annotations
 
 import argparse
+import datetime
+import os
 import sys
 from pathlib import Path
 
-from .scenario import ScenarioError
+from tqdm import tqdm
+
+from mechval.analysis import analyse, format_analysis
+from mechval.compare import passed
+from mechval.cost_tables import cheapest, convergence, format_tables
+from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, UnknownEngine, adapter, availability
+from mechval.reference import simulate_reference
+from mechval.reports.build import provenance, summary_markdown, write_report
+from mechval.reports.cost_report import cost_section, write_cost_report, write_table
+from mechval.reports.stability import stability_section
+from mechval.scenario import ScenarioError
+from mechval.scenarios import builtin_names, load
+from mechval.signals import SIGNAL_CLASS
+
+from .baseline_run import BaselinesExist, check_command, save_command
+from .cost import sweep
+from .executors import LocalExecutor, executor_for
+from .runner import discrepancies, references_for, run_tasks, tasks_for
 
 
 class UsageError(Exception):
@@ -42,13 +61,11 @@ class EngineFailure(Exception):
 
 
 def _load(name: str):
-    from mechval.scenarios import load
-    return load(name)
+    """A scenario whose [engines.NAME] tables must name registered engines."""
+    return load(name, ENGINE_NAMES)
 
 
 def cmd_list(args) -> int:
-    from mechval.engines.registry import availability
-    from mechval.scenarios import builtin_names
     print("scenarios:")
     for name in builtin_names():
         s = _load(name)
@@ -64,9 +81,7 @@ def cmd_list(args) -> int:
 def simulate(scenario, engine: str):
     """Canonical signals of `engine` ('reference' or an adapter name)."""
     if engine == "reference":
-        from .reference import simulate_reference
         return simulate_reference(scenario)
-    from mechval.engines.registry import adapter
     return adapter(engine).simulate(scenario)
 
 
@@ -90,7 +105,6 @@ def _engines(names: list[str] | None) -> list[str]:
     """The requested engines (all installed ones by default); a requested
     engine that is not installed is an error, an unrequested one is skipped
     with its reason."""
-    from mechval.engines.registry import adapter, availability
     if names and "reference" in names:
         raise UsageError("'reference' is the analytic solution every engine is compared with, not an engine "
                          "to run here (use it with `mechval simulate`)")
@@ -108,7 +122,6 @@ def _engines(names: list[str] | None) -> list[str]:
 
 
 def _scenarios(names: list[str] | None, skip_hard: bool):
-    from mechval.scenarios import builtin_names
     if names:
         return [_load(n) for n in names]
     loaded = [_load(n) for n in builtin_names()]
@@ -116,21 +129,16 @@ def _scenarios(names: list[str] | None, skip_hard: bool):
 
 
 def default_out_dir(kind: str = "run") -> Path:
-    import datetime
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     return Path("reports") / "out" / f"{kind}-{stamp}"
 
 
 def _workers(args) -> int:
-    import os
     return args.workers or os.cpu_count() or 1
 
 
 def _cost_sweep(scenarios, engines, executor, quick: bool, repeats: int, quiet: bool):
-    """The cost table, observed orders and cheapest settings (mechval.cost)."""
-    from tqdm import tqdm
-    from .cost import sweep
-    from .cost_tables import cheapest, convergence
+    """The cost table, observed orders and cheapest settings (mechval.harness.cost)."""
     with tqdm(desc="cost points", unit="point", file=sys.stderr, disable=quiet) as bar:
         def done(point, outcome):
             bar.set_postfix_str(f"{point.engine} {point.variant} dt {point.step:.3g}"
@@ -141,9 +149,6 @@ def _cost_sweep(scenarios, engines, executor, quick: bool, repeats: int, quiet: 
 
 
 def cmd_cost(args) -> int:
-    from mechval.reports.cost_report import write_cost_report
-    from .cost_tables import format_tables
-    from .executors import executor_for
     if args.repeats < 1:
         raise UsageError("--repeats must be at least 1")
     scenarios = [_load(name) for name in args.scenarios]
@@ -160,11 +165,6 @@ def cmd_cost(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from tqdm import tqdm
-    from mechval.reports.build import summary_markdown, write_report, provenance
-    from mechval.reports.stability import stability_section
-    from .compare import passed
-    from .runner import discrepancies, references_for, run_tasks, tasks_for
 
     scenarios = _scenarios(args.scenarios, args.skip_hard)
     engines = _engines(args.engine)
@@ -183,8 +183,6 @@ def cmd_run(args) -> int:
     records = discrepancies(outcomes, references)
     sections = [s for s in (stability_section(records, scenarios),) if s]
     if args.cost:
-        from mechval.reports.cost_report import cost_section, write_table
-        from .executors import LocalExecutor
         table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
                                            quick=False, repeats=3, quiet=args.quiet)
         sections.append(cost_section(table, orders, cheap))
@@ -195,8 +193,24 @@ def cmd_run(args) -> int:
     return 0 if passed(records) else 1
 
 
+def parse_signal_rtol(items: list[str] | None) -> dict[str, float]:
+    """NAME=R pairs of --signal-rtol; NAME is a canonical signal (or t)."""
+    result = {}
+    for item in items or []:
+        name, _, value = item.partition("=")
+        if name not in SIGNAL_CLASS and name != "t":
+            raise UsageError(f"--signal-rtol {item}: unknown signal {name!r}")
+        try:
+            result[name] = float(value)
+        except ValueError:
+            raise UsageError(f"--signal-rtol {item}: expected NAME=NUMBER") from None
+        if not 0 <= result[name] < float("inf"):
+            raise UsageError(f"--signal-rtol {item}: must be a finite number ≥ 0")
+    return result
+
+
+
 def cmd_baseline(args) -> int:
-    from .baseline_run import check_command, parse_signal_rtol, save_command
     scenarios = _scenarios(args.scenarios, skip_hard=True)
     engines = _engines(args.engine)
     if args.action == "save":
@@ -206,7 +220,6 @@ def cmd_baseline(args) -> int:
 
 
 def cmd_analyse(args) -> int:
-    from .analysis import analyse, format_analysis
     print(format_analysis(analyse(_load(args.scenario))))
     return 0
 
@@ -263,11 +276,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from mechval.engines.registry import EngineUnavailable, UnknownEngine
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (ScenarioError, UnknownEngine, UsageError) as exc:
+    except (ScenarioError, UnknownEngine, UsageError, BaselinesExist) as exc:
         print(f"mechval: error: {exc}", file=sys.stderr)
         return 2
     except EngineUnavailable as exc:

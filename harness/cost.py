@@ -32,21 +32,17 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from .compare import compare
-from .executors import Done, Executor
-from .linkages import build_mechanism
-from .reference import simulate_reference
-from .scenario import Scenario, Tolerance
-from .signals import SIGNAL_CLASS, Signals
+from mechval.compare import compare
+from mechval.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE
+from mechval.engines.registry import adapter
+from mechval.kinematics import step_rate
+from mechval.linkages import build_mechanism
+from mechval.reference import simulate_reference
+from mechval.scenario import Scenario, Tolerance
+from mechval.signals import SIGNAL_CLASS, Signals
 
-REFERENCE = "reference"
-HEADLINE = "force+torque"
-CLASS_ORDER = ("angle", "position", "velocity", "acceleration", "force", "torque", HEADLINE)
-#: Error targets of the cheapest-setting table (relative, or rad / m).
-TARGETS = (1e-2, 1e-3, 1e-4, 1e-6)
-COLUMNS = ["scenario", "engine", "version", "variant", "step_s", "steps_per_sample", "default", "class", "error",
-           "error_kind", "worst_signal", "s_per_sim_s", "s_per_sim_s_min", "s_per_sim_s_max",
-           "vs_reference", "build_s", "engine_s_per_sim_s", "repeats", "failure"]
+from .executors import Done, Executor
+
 
 
 @dataclass(frozen=True)
@@ -77,7 +73,6 @@ def measure_point(point: Point) -> Measurement:
     if point.engine == REFERENCE:
         simulate: Callable[[Scenario], Signals] = simulate_reference
     else:
-        from mechval.engines.registry import adapter
         engine = adapter(point.engine)     # imports the engine before any timing
         simulate = lambda scenario: engine.simulate(scenario, point.overrides)
     first, run_s, build_s, engine_s = None, [], [], []
@@ -107,8 +102,6 @@ def points_for(scenario: Scenario, engine: str, quick: bool = False, repeats: in
     """The sweep of one engine: its variants × its ladder and default step
     (the adapter's step for the scenario, as interval / k). Quick: the
     default variant at the default step and one ~10× coarser."""
-    from mechval.engines.base import step_rate
-    from mechval.engines.registry import adapter
     adapter_ = adapter(engine)
     mechanism, times = build_mechanism(scenario), scenario.time.t
     interval = float(times[1] - times[0])

@@ -5,7 +5,7 @@ Dask distributed cluster.
 else, and returns one `Done` per item in the items' order: the value, or the
 reason there is none (the exception, a crashed worker, a timeout) as text,
 so a failing task is data and never stops the others. The local pool is
-pebble's (as `mechval.runner`): a task that hangs past the timeout is
+pebble's (as `mechval.harness.runner`): a task that hangs past the timeout is
 killed, a worker that crashes is replaced. On Dask, fn and its arguments
 travel pickled to the cluster's workers, which must have mechval installed;
 a running Dask task cannot be killed, so the timeout there only stops

@@ -9,44 +9,23 @@ compares every result with the reference (computed once per scenario).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping
+from typing import Callable, Iterable, Mapping
 
 import pandas as pd
 
-from .compare import COLUMNS, compare
+from mechval.compare import COLUMNS, compare
+from mechval.engines.registry import adapter
+from mechval.linkages import build_mechanism
+from mechval.outcome import Outcome, Task
+from mechval.reference import simulate_reference
+from mechval.scenario import Scenario
+from mechval.signals import Signals
+
 from .executors import Done, LocalExecutor
-from .reference import simulate_reference
-from .scenario import Scenario
-from .signals import Signals
-
-
-@dataclass(frozen=True)
-class Task:
-    scenario: Scenario
-    engine: str
-    setting: str = "default"
-    overrides: Mapping[str, Any] = field(default_factory=dict)
-
-    @property
-    def label(self) -> str:
-        suffix = "" if self.setting == "default" else f"[{self.setting}]"
-        return f"{self.scenario.name} × {self.engine}{suffix}"
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """What one task produced: signals, or the reason there are none."""
-
-    task: Task
-    signals: Signals | None
-    error: str = ""
-    wall_time: float = 0.0
 
 
 def simulate_task(task: Task) -> tuple[Signals, float]:
     """Worker body: the engine's canonical signals and the wall time."""
-    from mechval.engines.registry import adapter
     start = time.perf_counter()
     signals = adapter(task.engine).simulate(task.scenario, task.overrides)
     return signals, time.perf_counter() - start
@@ -58,8 +37,6 @@ def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Tas
     Hard scenarios run at each engine's default setting only: they test
     stability, and the accuracy variants would multiply their long runs.
     """
-    from mechval.engines.registry import adapter
-    from mechval.linkages import build_mechanism
     tasks = []
     for scenario in scenarios:
         mechanism = build_mechanism(scenario)

@@ -20,7 +20,7 @@ from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 import mechval
 from mechval.linkages import build_mechanism
-from mechval.runner import Outcome
+from mechval.outcome import Outcome
 from mechval.scenario import Scenario
 from mechval.signals import Signals, write_folder_atomically
 

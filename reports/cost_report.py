@@ -17,8 +17,7 @@ import numpy as np
 import pandas as pd
 from jinja2 import Environment
 
-from mechval.cost import CLASS_ORDER, HEADLINE, REFERENCE
-from mechval.cost_tables import MIN_ORDER, ORDER_SPREAD, pivot_cells
+from mechval.cost_tables import CLASS_ORDER, HEADLINE, MIN_ORDER, ORDER_SPREAD, REFERENCE, pivot_cells
 from mechval.signals import write_folder_atomically
 
 from .build import Section, provenance

@@ -11,12 +11,11 @@ import math
 import tomllib
 from dataclasses import fields
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Collection, Mapping
 
 import numpy as np
 
 from mechval.drive import DriveLaw
-from mechval.engines.registry import ENGINE_NAMES
 from mechval.analysis import check_trustworthy
 from mechval.linkages import LINKAGES
 from mechval.scenario import (DEFAULT_TOLERANCE, EngineTable, LinkMass, Scenario,
@@ -44,8 +43,9 @@ def builtin_path(name: str) -> Path:
     return HERE / f"{name}.toml"
 
 
-def load(name_or_path: str | Path) -> Scenario:
-    """Load a built-in scenario by name, or a scenario file by path."""
+def load(name_or_path: str | Path, engines: Collection[str] | None = None) -> Scenario:
+    """Load a built-in scenario by name, or a scenario file by path
+    (`engines`: see `parse`)."""
     text = str(name_or_path)
     path = Path(text)
     if not path.suffix and not path.exists() and builtin_path(text).exists():
@@ -57,7 +57,7 @@ def load(name_or_path: str | Path) -> Scenario:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ScenarioError(path, "file", f"not valid TOML: {exc}") from None
-    return parse(data, path)
+    return parse(data, path, engines)
 
 
 class _Reader:
@@ -119,8 +119,13 @@ class _Reader:
         return _Reader(self.source, self.key(name), value)
 
 
-def parse(data: Mapping[str, Any], source: str | Path | None = None) -> Scenario:
-    """Validate a parsed TOML document into a `Scenario` (SI units)."""
+def parse(data: Mapping[str, Any], source: str | Path | None = None,
+          engines: Collection[str] | None = None) -> Scenario:
+    """Validate a parsed TOML document into a `Scenario` (SI units).
+
+    `engines`: the engine names an `[engines.NAME]` table may name (the
+    harness passes its registry's); None accepts any name, and an adapter
+    still refuses settings it does not know."""
     top = _Reader(source, "", data)
     top.only(TOP_KEYS)
     name = top.string("name")
@@ -148,11 +153,11 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None) -> Scenario
         time_table.fail("samples", f"must be at least 2, got {samples}")
     time = TimeGrid(time_table.number("end", positive=True), samples)
     tolerance = Tolerance().updated(_tolerance(top.sub("tolerance")))
-    engines = _engines(top.sub("engines"))
+    engine_tables = _engines(top.sub("engines"), engines)
     module.check_closure(module.Geometry(**geometry), drive, _dense_times(time), source)
     scenario = Scenario(name=name, mechanism=kind, description=description, geometry=geometry, mass=mass,
                     drive=drive, gravity=gravity, damping=damping, time=time, tolerance=tolerance,
-                    engines=engines, tags=tuple(tags), source=Path(source) if source else None)
+                    engines=engine_tables, tags=tuple(tags), source=Path(source) if source else None)
     check_trustworthy(scenario)
     return scenario
 
@@ -225,8 +230,9 @@ def _tolerance(table: _Reader) -> dict[str, float]:
     return {k: table.number(k, positive=True) for k in table.table}
 
 
-def _engines(table: _Reader) -> dict[str, EngineTable]:
-    table.only(set(ENGINE_NAMES))
+def _engines(table: _Reader, names: Collection[str] | None) -> dict[str, EngineTable]:
+    if names is not None:
+        table.only(set(names))
     engines = {}
     for engine in table.table:
         sub = table.sub(engine)

@@ -50,7 +50,7 @@ def pytest_addoption(parser):
 def record_comparison():
     """Tests call record_comparison(scenario, engine, signals, records,
     wall_time) so that --mechval-report can show their results."""
-    from mechval.runner import Outcome, Task
+    from mechval.outcome import Outcome, Task
 
     def record(scenario, engine, signals, records, wall_time=0.0, setting="default"):
         COMPARISONS.append((Outcome(Task(scenario, engine, setting), signals, wall_time=wall_time), records))

@@ -15,12 +15,12 @@ import pandas as pd
 import pytest
 
 from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
-from mechval import baseline as bl
-from mechval.baseline_run import check_run
-from mechval.cli import main
+from mechval.harness import baseline as bl
+from mechval.harness.baseline_run import check_run
+from mechval.harness.cli import main
 from mechval.engines.registry import ENGINE_NAMES, availability
 from mechval.reports.build import provenance
-from mechval.runner import tasks_for
+from mechval.harness.runner import tasks_for
 from mechval.signals import Signals
 
 ROOT = Path(__file__).resolve().parent.parent / "baselines"

@@ -74,7 +74,7 @@ def test_analyse_reports_grashof_and_toggles():
 def test_simulate_refuses_to_write_an_engine_blow_up(tmp_path, monkeypatch):
     """NaN without a reason (an engine blow-up) writes no CSV, exit 1."""
     from fake_engines import FAKES
-    from mechval import cli
+    from mechval.harness import cli
     from mechval.engines import registry
     monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
     csv = tmp_path / "out.csv"

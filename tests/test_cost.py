@@ -9,11 +9,11 @@ import pandas as pd
 import pytest
 
 from fake_engines import FAKES
-from mechval.cli import main
-from mechval.cost import HEADLINE, REFERENCE, nice_count, points_for, sweep
+from mechval.harness.cli import main
+from mechval.harness.cost import HEADLINE, REFERENCE, nice_count, points_for, sweep
 from mechval.cost_tables import asymptotic_range, cheapest, convergence
 from mechval.engines import registry
-from mechval.executors import LocalExecutor
+from mechval.harness.executors import LocalExecutor
 from mechval.reports import build
 from mechval.reports.cost_report import cost_section
 from mechval.scenarios import builtin_path, load

@@ -17,7 +17,7 @@ from fake_engines import FAKES
 from mechval.engines import registry
 from mechval.reference import simulate_reference
 from mechval.reports import build
-from mechval.runner import discrepancies, run_tasks, tasks_for
+from mechval.harness.runner import discrepancies, run_tasks, tasks_for
 from mechval.scenarios import parse
 from scenario_data import slider_crank
 

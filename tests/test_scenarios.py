@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import BUILTIN
+from mechval.engines.registry import ENGINE_NAMES
 from mechval.scenario import ScenarioError
 from mechval.scenarios import load, parse
 from scenario_data import fourbar, slider_crank
@@ -78,7 +79,7 @@ BAD = [
 @pytest.mark.parametrize("data,key,reason", BAD, ids=[b[1] + ":" + b[2] for b in BAD])
 def test_bad_input_refused(data, key, reason):
     with pytest.raises(ScenarioError) as info:
-        parse(data, "bad.toml")
+        parse(data, "bad.toml", ENGINE_NAMES)
     assert info.value.source == "bad.toml"
     assert info.value.key == key
     assert reason in info.value.reason

@@ -50,9 +50,9 @@ echo "== determinism: committed baselines, in one process, 4 Python threads at o
 .venv/bin/python - <<'PY'
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from mechval import baseline as bl
+from mechval.harness import baseline as bl
 from mechval.engines.registry import adapter, availability
-from mechval.runner import tasks_for
+from mechval.harness.runner import tasks_for
 from mechval.scenarios import builtin_names, load
 
 scenarios = [s for s in map(load, builtin_names()) if "hard" not in s.tags]

@@ -1,0 +1,34 @@
+"""What a comparison run is made of: a task (scenario × engine × setting)
+and its outcome (signals, or the reason there are none). The harness
+produces them; reports and tests read them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from .scenario import Scenario
+from .signals import Signals
+
+
+@dataclass(frozen=True)
+class Task:
+    scenario: Scenario
+    engine: str
+    setting: str = "default"
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        suffix = "" if self.setting == "default" else f"[{self.setting}]"
+        return f"{self.scenario.name} × {self.engine}{suffix}"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one task produced: signals, or the reason there are none."""
+
+    task: Task
+    signals: Signals | None
+    error: str = ""
+    wall_time: float = 0.0

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .linkages import build_mechanism, linkage
+from .reference import raw_reference
 from .scenario import Scenario, ScenarioError
 
 
@@ -113,7 +114,6 @@ def check_trustworthy(scenario: Scenario) -> None:
 
 
 def _check_trustworthy(scenario: Scenario) -> None:
-    from .reference import raw_reference     # the reference builds on this module's siblings
     module = linkage(scenario.mechanism)
     t = scenario.time.t
     kinematics = module.kinematics(module.Geometry(**scenario.geometry), scenario.drive, t)

@@ -2,47 +2,84 @@
 
 Registering by module path keeps `mechval list`, scenario loading and test
 collection free of engine imports (xarray's backend registry does the same).
+
+Two sources, built-ins first:
+- `ADAPTERS`: the adapters shipped with mechval;
+- the entry-point group `mechval.engines` of every installed distribution:
+  an engine team ships its adapter in a package of its own, declaring e.g.
+  `[project.entry-points."mechval.engines"] drake = "mechval_drake:DrakeAdapter"`,
+  and mechval finds it without being forked. A plug-in may not take a
+  built-in's name.
+
+An engine is available when its adapter imports and the engine library it
+names (`EngineAdapter.library`, the library's own import name) imports.
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
+import importlib.metadata
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from .base import EngineAdapter
 
-#: Engine name → "module:Class". "reference" is the analytic solution.
+#: Built-in engine name → "module:Class". "reference" is the analytic solution.
 ADAPTERS = {
     "mujoco": "mechval.engines.mujoco:MujocoAdapter",
     "pybullet": "mechval.engines.pybullet:PybulletAdapter",
     "exudyn": "mechval.engines.exudyn:ExudynAdapter",
 }
 ENGINE_NAMES = tuple(ADAPTERS)
+ENTRY_POINT_GROUP = "mechval.engines"
 
 
 class UnknownEngine(ValueError):
     def __init__(self, name: str):
-        super().__init__(f"unknown engine {name!r} (available: reference, {', '.join(ENGINE_NAMES)})")
+        super().__init__(f"unknown engine {name!r} (available: reference, {', '.join(engine_names())})")
 
 
 class EngineUnavailable(RuntimeError):
     """The engine's library is not installed or fails to import."""
 
 
+@functools.lru_cache(maxsize=1)
+def plugins() -> dict[str, str]:
+    """Engine name → "module:Class" from the `mechval.engines` entry points
+    (built-in names are reserved and skipped)."""
+    found = {}
+    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if entry.name not in ADAPTERS:
+            found[entry.name] = entry.value
+    return found
+
+
+def targets() -> dict[str, str]:
+    """Every engine name → "module:Class": built-ins, then plug-ins."""
+    return {**ADAPTERS, **plugins()}
+
+
+def engine_names() -> tuple[str, ...]:
+    return tuple(targets())
+
+
 def adapter_class(name: str) -> "type[EngineAdapter]":
     """The named adapter class (imports its module, not the engine library)."""
-    if name not in ADAPTERS:
+    target = targets().get(name)
+    if target is None:
         raise UnknownEngine(name)
-    module_name, class_name = ADAPTERS[name].split(":")
+    module_name, _, class_name = target.partition(":")
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        # Only the engine library itself missing or broken makes the engine
-        # unavailable (and its tests skip); a bug in the adapter must fail.
-        if (exc.name or "").split(".")[0] != name:
+        # A module missing outside the adapter's own package is the engine
+        # library (or one of its dependencies): the engine is unavailable
+        # and its tests skip. A module missing inside it is a bug: it fails.
+        missing = (exc.name or "").split(".")[0]
+        if not missing or missing == module_name.split(".")[0]:
             raise
-        raise EngineUnavailable(f"{name}: the {name} library cannot be imported ({exc})") from None
+        raise EngineUnavailable(f"{name}: {missing} cannot be imported ({exc})") from None
     return getattr(module, class_name)
 
 
@@ -58,7 +95,7 @@ def adapter(name: str) -> "EngineAdapter":
 def availability() -> dict[str, str]:
     """Engine name → "" if usable, else the reason it is not."""
     result = {}
-    for name in ENGINE_NAMES:
+    for name in engine_names():
         try:
             adapter(name)
             result[name] = ""

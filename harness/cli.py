@@ -13,7 +13,7 @@ from tqdm import tqdm
 from mechval.analysis import analyse, format_analysis
 from mechval.compare import passed
 from mechval.cost_tables import cheapest, convergence, format_tables
-from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, UnknownEngine, adapter, availability
+from mechval.engines.registry import EngineUnavailable, UnknownEngine, adapter, availability, engine_names
 from mechval.reference import simulate_reference
 from mechval.reports.build import provenance, summary_markdown, write_report
 from mechval.reports.cost_report import cost_section, write_cost_report, write_table
@@ -62,7 +62,7 @@ class EngineFailure(Exception):
 
 def _load(name: str):
     """A scenario whose [engines.NAME] tables must name registered engines."""
-    return load(name, ENGINE_NAMES)
+    return load(name, engine_names())
 
 
 def cmd_list(args) -> int:

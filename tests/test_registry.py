@@ -1,0 +1,112 @@
+"""The engine registry: built-ins by module path, third-party adapters from
+the `mechval.engines` entry-point group, availability keyed on the engine
+library's own import name."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from mechval.engines import registry
+
+TINY_ADAPTER = '''
+"""A third-party engine adapter, installed as its own distribution."""
+from mechval.engines.base import EngineAdapter, RawRun
+from mechval.reference import raw_reference
+
+
+class TinyAdapter(EngineAdapter):
+    name = "tiny"
+    library = "json"                     # the "engine library": always importable
+    distribution = "tiny-mechval-engine"
+
+    def default_settings(self, mechanism, times):
+        return {"timestep": 1e-3}
+
+    def run(self, mechanism, times, settings):
+        return RawRun(raw_reference(mechanism, times))
+
+
+class MissingLibraryAdapter(TinyAdapter):
+    name = "missing"
+    library = "no_such_engine_library_xyz"
+'''
+
+TINY_PYPROJECT = '''
+[build-system]
+requires = ["setuptools"]
+build-backend = "setuptools.build_meta"
+
+[project]
+name = "tiny-mechval-engine"
+version = "0.0.1"
+
+[project.entry-points."mechval.engines"]
+tiny = "tiny_mechval_engine:TinyAdapter"
+missing = "tiny_mechval_engine:MissingLibraryAdapter"
+mujoco = "tiny_mechval_engine:TinyAdapter"
+'''
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> Path:
+    """The tiny adapter package, pip-installed into a folder of its own."""
+    root = tmp_path_factory.mktemp("tiny")
+    source, target = root / "src", root / "site"
+    (source / "tiny_mechval_engine").mkdir(parents=True)
+    (source / "tiny_mechval_engine" / "__init__.py").write_text(TINY_ADAPTER)
+    (source / "pyproject.toml").write_text(TINY_PYPROJECT)
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
+                    "--target", str(target), str(source)], check=True, capture_output=True)
+    return target
+
+
+def mechval(site: Path, *args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    return subprocess.run([sys.executable, "-m", "mechval.harness.cli", *args], capture_output=True,
+                          text=True, env=env, timeout=120)
+
+
+def test_an_installed_plugin_is_listed_and_runs(installed, tmp_path):
+    listing = mechval(installed, "list")
+    assert listing.returncode == 0, listing.stderr
+    assert "tiny         available" in listing.stdout
+    # The plug-in's library is missing: unavailable, with the library's name.
+    assert "missing      unavailable: missing: no_such_engine_library_xyz cannot be imported" in listing.stdout
+    csv = tmp_path / "tiny.csv"
+    run = mechval(installed, "simulate", "fourbar-seed", "--engine", "tiny", "--csv", str(csv))
+    assert run.returncode == 0, run.stderr
+    reference = tmp_path / "reference.csv"
+    assert mechval(installed, "simulate", "fourbar-seed", "--csv", str(reference)).returncode == 0
+    assert csv.read_text().splitlines()[1:] == reference.read_text().splitlines()[1:]
+
+
+def test_a_plugin_cannot_take_a_builtin_name(installed):
+    code = textwrap.dedent("""
+        from mechval.engines import registry
+        print(registry.targets()["mujoco"])
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(installed)}, check=True).stdout
+    assert out.strip() == registry.ADAPTERS["mujoco"]
+
+
+def test_without_plugins_only_builtins():
+    assert registry.engine_names()[:len(registry.ENGINE_NAMES)] == registry.ENGINE_NAMES
+
+
+def test_a_bug_in_an_adapter_module_is_not_unavailability(monkeypatch, tmp_path):
+    """Only the engine library missing makes an engine unavailable; an
+    adapter importing a module of its own package that does not exist fails."""
+    package = tmp_path / "buggy_adapter_pkg"
+    package.mkdir()
+    (package / "__init__.py").write_text("from buggy_adapter_pkg import no_such_module\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, "buggy": "buggy_adapter_pkg:Adapter"})
+    with pytest.raises(ImportError):
+        registry.adapter_class("buggy")

@@ -15,7 +15,8 @@ from mechval.mechanism import GROUND, point_motion, rotate
 from mechval.reference import raw_reference, simulate_reference
 from mechval.scenario import ScenarioError
 from mechval.scenarios import parse
-from mechval.signals import signal_names, with_slide_columns
+from mechval.signals import SIGNAL_CLASS, signal_names, with_slide_columns
+from scales import class_peaks, motion_scales
 from scenario_data import merge
 from mechval.health import power_balance
 
@@ -112,13 +113,14 @@ def test_finite_differences(name):
     h = 1e-5
     now, ahead, behind = slides(mech, t), slides(mech, t + h), slides(mech, t - h)
     slide = next(j.name for j in mech.joints if j.kind == "prismatic")
+    scale = motion_scales(mech, t)
     triples = [(f"{b.name}.{p}", f"{b.name}.{v}", f"{b.name}.{a}") for b in mech.bodies
                for p, v, a in (("theta", "omega", "alpha"), ("x", "vx", "ax"), ("y", "vy", "ay"))]
     for pos, vel, acc in triples + [(f"{slide}.s", f"{slide}.v", f"{slide}.a")]:
         fd_v = (ahead[pos] - behind[pos]) / (2 * h)
         fd_a = (ahead[vel] - behind[vel]) / (2 * h)
-        assert np.abs(fd_v - now[vel]).max() <= 1e-6 * max(np.abs(now[vel]).max(), 1.0), vel
-        assert np.abs(fd_a - now[acc]).max() <= 1e-6 * max(np.abs(now[acc]).max(), 1.0), acc
+        assert np.abs(fd_v - now[vel]).max() <= 1e-6 * scale[vel.split(".")[1]], vel
+        assert np.abs(fd_a - now[acc]).max() <= 1e-6 * scale[acc.split(".")[1]], acc
 
 
 def wrapped(angle):
@@ -197,9 +199,11 @@ def test_mirror_branches(make, first, second):
     one = simulate_reference(parse(make(geometry=first, drive=drive, effects={"gravity": gravity}), "one"))
     two = simulate_reference(parse(make(geometry=second, drive={k: -v for k, v in drive.items()},
                                         effects={"gravity": [gravity[0], -gravity[1]]}), "two"))
+    peaks = class_peaks(one, SIGNAL_CLASS)
     for name, expected in mirrored(one).items():
         error = wrapped(two[name] - expected) if name.startswith("theta") else two[name] - expected
-        assert np.abs(error).max() <= 1e-11 * max(1.0, np.abs(expected).max()), name
+        bound = 2 * np.pi if name.startswith("theta") else peaks[SIGNAL_CLASS[name]]
+        assert np.abs(error).max() <= 1e-11 * bound, name
 
 
 def test_whitworth_lever_turns_continuously():

@@ -14,7 +14,9 @@ from mechval.mechanism import point_motion
 from mechval.reference import raw_reference, simulate_reference
 from mechval.newton_euler import assemble
 from mechval.scenarios import parse
+from mechval.signals import SIGNAL_CLASS
 from norton import UNKNOWNS, norton_system
+from scales import class_peaks, motion_scales, size
 from scenario_data import fourbar, slider_crank
 
 BOTH_KINDS_VARIANTS = [
@@ -49,8 +51,7 @@ def test_loop_closure(scenario):
     """Both sides of every joint coincide (a slider's point on its guide
     line) to ~1e-12 of the mechanism's size."""
     mech, raw = raw_of(scenario)
-    size = max(max(abs(p) for p in j.point_i + j.point_j) for j in mech.joints)
-    assert joint_gaps(mech, raw).max() <= 1e-12 * max(size, 1.0)
+    assert joint_gaps(mech, raw).max() <= 1e-12 * size(mech)
 
 
 @pytest.mark.parametrize("scenario", SCENES, ids=IDS)
@@ -61,15 +62,14 @@ def test_finite_differences(scenario):
     t = np.linspace(0.0, scenario.time.end, 97)
     h = 1e-5
     now, ahead, behind = mech.motion(t), mech.motion(t + h), mech.motion(t - h)
+    scale = motion_scales(mech, t)
     for body in mech.bodies:
         for pos, vel, acc in (("theta", "omega", "alpha"), ("x", "vx", "ax"), ("y", "vy", "ay")):
             name = f"{body.name}."
             fd_v = (ahead[name + pos] - behind[name + pos]) / (2 * h)
             fd_a = (ahead[name + vel] - behind[name + vel]) / (2 * h)
-            v_scale = max(np.abs(now[name + vel]).max(), 1.0)
-            a_scale = max(np.abs(now[name + acc]).max(), 1.0)
-            assert np.abs(fd_v - now[name + vel]).max() <= 1e-6 * v_scale, name + vel
-            assert np.abs(fd_a - now[name + acc]).max() <= 1e-6 * a_scale, name + acc
+            assert np.abs(fd_v - now[name + vel]).max() <= 1e-6 * scale[vel], name + vel
+            assert np.abs(fd_a - now[name + acc]).max() <= 1e-6 * scale[acc], name + acc
 
 
 def test_slider_closed_forms():
@@ -131,10 +131,11 @@ def test_mirror_open_crossed():
     crossed = simulate_reference(parse(fourbar(geometry={"branch": "crossed"},
                                                drive={"phi0": -0.2, "omega0": -2.0, "alpha": -0.7},
                                                effects={"gravity": [3.0, 9.81]}), "crossed"))
+    peaks = class_peaks(open_, SIGNAL_CLASS)
     for name in open_.frame.columns[1:]:
         sign = 1.0 if name.endswith("x") else -1.0
         np.testing.assert_allclose(crossed[name], sign * open_[name], rtol=0,
-                                   atol=1e-11 * max(1.0, np.abs(open_[name]).max()), err_msg=name)
+                                   atol=1e-11 * peaks[SIGNAL_CLASS[name]], err_msg=name)
 
 
 def test_mirror_right_left():
@@ -145,6 +146,7 @@ def test_mirror_right_left():
     left = simulate_reference(parse(slider_crank(geometry={"offset": 0.03, "branch": "left"},
                                                  drive={"phi0": np.pi - 0.3, "omega0": -10.0, "alpha": -2.0},
                                                  effects={"gravity": [-2.0, -9.81]}), "left"))
+    peaks = class_peaks(right, SIGNAL_CLASS)
     for name in right.frame.columns[1:]:
         if name.startswith("theta"):
             expected = np.pi - right[name]
@@ -153,7 +155,7 @@ def test_mirror_right_left():
         else:
             expected = -right[name]
         np.testing.assert_allclose(left[name], expected, rtol=0,
-                                   atol=1e-11 * max(1.0, np.abs(right[name]).max()), err_msg=name)
+                                   atol=1e-11 * peaks[SIGNAL_CLASS[name]], err_msg=name)
 
 
 UNDAMPED_FOURBARS = [(s, i) for s, i in zip(SCENES, IDS) if s.mechanism == "fourbar" and not s.damping]

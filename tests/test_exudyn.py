@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from contract import AdapterContract
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
 from mechval.compare import compare, format_records, passed
 from mechval.drive import DriveLaw
@@ -284,3 +285,7 @@ def test_prismatic_joint_between_moving_bodies(adapter, damping):
         else:                                 # relative to the largest of its kind (some are 0)
             peak = max(np.abs(reference[f"{b.name}.{quantity}"]).max() for b in mechanism.bodies)
             assert error < 1e-4 * peak, column
+
+
+class TestContract(AdapterContract):
+    engine = "exudyn"

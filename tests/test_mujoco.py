@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from contract import AdapterContract
 from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
 from mechval.compare import compare, format_records, passed
 from mechval.drive import DriveLaw
@@ -309,3 +310,7 @@ def test_a_single_instant_without_pre_roll(engine):
     raw = engine.run(mech, scenario.time.t[:1], settings)
     assert raw.info["steps"] == 0 and len(raw.frame) == 1
     assert np.all(np.isfinite(raw.frame.to_numpy()))
+
+
+class TestContract(AdapterContract):
+    engine = "mujoco"

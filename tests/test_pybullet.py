@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from contract import AdapterContract
 from conftest import engine_or_skip
 from mechval.compare import compare, format_records, passed
 from mechval.linkages import build_mechanism
@@ -275,3 +276,7 @@ def test_scenario_table_overrides_settings(adapter):
     mechanism = build_mechanism(scenario)
     defaults = adapter.default_settings(mechanism, scenario.time.t)
     assert adapter.settings_for(scenario, mechanism) == {**defaults, "timestep": 5e-4, "layout": "tree"}
+
+
+class TestContract(AdapterContract):
+    engine = "pybullet"

@@ -12,7 +12,7 @@ def step_rate(mechanism: Mechanism, times: np.ndarray, dense: int = 20001) -> fl
     (rad/s), from the reference kinematics on a dense grid.
 
     Speed alone misjudges sharp motion at moderate speed (near the Grashof
-    change point), hence the α and jerk terms (ENGINE_NOTES, "step rule").
+    change point), hence the α and jerk terms (docs/engines.md, "step rule").
     """
     t = np.linspace(float(times[0]), float(times[-1]), dense)
     motion = mechanism.motion(t)

@@ -5,7 +5,7 @@ the drive, gravity, and the reference motion of every body (used only to
 start a simulation from a consistent state). It never says "four-bar": a new
 linkage needs a `Mechanism` builder and a reference, not new engine models.
 
-Frames and conventions (DESIGN.md):
+Frames and conventions (docs/conventions.md):
 - World: planar x–y, joint axes along +z, angles counter-clockwise from +x.
 - Each body has a frame; its pose is (x, y, theta) of the frame origin in
   world. Centre of mass `com` and joint points are given in that body frame.

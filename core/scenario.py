@@ -26,7 +26,7 @@ class ScenarioError(ValueError):
         return type(self), (self.source, self.key, self.reason)
 
 
-#: Tolerance classes and their defaults (DESIGN.md; velocity and acceleration
+#: Tolerance classes and their defaults (docs/scenario-format.md; velocity and acceleration
 #: are mechval extensions). Angles and positions are absolute (rad, m); the
 #: other classes are max |error| / max |reference| over the run.
 DEFAULT_TOLERANCE = {

@@ -1,6 +1,6 @@
 """The canonical signals table shared by the reference and every engine.
 
-`Signals` is time × named columns (DESIGN.md names, SI units, Fij = force by
+`Signals` is time × named columns (docs/conventions.md names, SI units, Fij = force by
 body i on body j in world axes, T12 = drive torque on the crank), plus where
 it came from (source, version, every setting) and, for every column that has
 missing values, the reason they are missing. Missing values are NaN in the
@@ -48,7 +48,7 @@ SIGNAL_CLASS = {
 
 
 def signal_names(kind: str) -> tuple[str, ...]:
-    """Canonical column order for a mechanism kind (DESIGN.md)."""
+    """Canonical column order for a mechanism kind (docs/conventions.md)."""
     return COMMON_SIGNALS + MECHANISM_SIGNALS[kind]
 
 

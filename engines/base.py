@@ -109,7 +109,7 @@ class EngineAdapter(ABC):
         return settings
 
     def simulate(self, scenario: Scenario, overrides: Mapping[str, Any] | None = None) -> Signals:
-        """Canonical signals of this engine on the scenario (DESIGN.md contract)."""
+        """Canonical signals of this engine on the scenario (docs/adapters.md)."""
         mechanism = build_mechanism(scenario)
         settings = self.settings_for(scenario, mechanism, overrides)
         raw = self.run(mechanism, scenario.time.t, settings)

@@ -17,7 +17,7 @@ Conversion of Exudyn's native outputs to the mechval convention:
   turned guide), so Fij = −R(θi)·ForceLocal. Its third component stays 0
   even under a couple: M is reported missing with that reason.
 - Drive: the coordinate constraint on (q_i, q_j) has multiplier λ (`Force`
-  output); the torque on body_j is T = −λ (ENGINE_NOTES; the sign test
+  output); the torque on body_j is T = −λ (docs/engines.md; the sign test
   against the reference confirms it).
 - Time stamp: the implicit solvers satisfy the equations of motion and the
   constraints at the end of every step, so the sensor value recorded after
@@ -55,7 +55,7 @@ if TYPE_CHECKING:
 NEWTON_TOLERANCE_PER_NEWTON = 1e-13
 #: Rotation per step for the step rule (`default_step`): 0.007 rad keeps
 #: index-2 errors near 1.4e-5 of peak on fourbar-seed (0.01 rad: 2.8e-5,
-#: ENGINE_NOTES' rule; cost grows as 1/rad_per_step).
+#: docs/engines.md's step rule; cost grows as 1/rad_per_step).
 RAD_PER_STEP = 0.007
 #: The index-3 force transient after the start shrinks like ρ^n over n
 #: steps (measured on fourbar-seed: 3e-4 → 4e-7 in 100 steps at ρ = 0.9,

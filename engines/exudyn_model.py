@@ -8,7 +8,7 @@ One `NodeRigidBody2D` at each body's centre of mass with an
 `ObjectConnectorCoordinate` on the relative rotation of the drive joint's
 bodies with both offset user functions (index-3 uses the offset, index-2 its
 time derivative; without `offsetUserFunction_t` index-2 silently holds the
-crank still — ENGINE_NOTES). Only the scene's effects are added: gravity as
+crank still — docs/engines.md). Only the scene's effects are added: gravity as
 `LoadMassProportional` when the scene has gravity, and a zero-stiffness
 `ObjectConnectorCoordinateSpringDamper` per damped joint (on the two
 rotation coordinates, or on the relative translation along a guide, which

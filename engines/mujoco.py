@@ -90,7 +90,7 @@ class MujocoAdapter(EngineAdapter):
         "default": {}, "high-accuracy": {"refine": 4, "solref_steps": 20.0}}
     #: Integrators for `mechval cost` (the ladder sets `timestep`). Euler and
     #: implicitfast need solref ≥ 2·dt on both equalities (below that they
-    #: blow up, ENGINE_NOTES); RK4 with solref 20·dt lowers the error floor
+    #: blow up, docs/engines.md); RK4 with solref 20·dt lowers the error floor
     #: that 10·dt leaves (module docstring).
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "RK4": {}, "RK4 solref 20dt": {"solref_steps": 20.0},

@@ -1,7 +1,7 @@
 """MJCF for a generic planar `Mechanism` (MuJoCo 4.0) and the maps between
 MuJoCo's coordinates and the mechanism's bodies and joints.
 
-Model layout (ENGINE_NOTES, MuJoCo):
+Model layout (docs/engines.md, MuJoCo):
 - A spanning tree of the joints from the ground: every body is the child of
   the body it is joined to on the way from the ground, on a hinge (revolute)
   or slide (prismatic) joint. A prismatic joint between two moving bodies is

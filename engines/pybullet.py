@@ -1,6 +1,6 @@
 """PyBullet 3.2.7 adapter: build (`pybullet_model`), drive, step, read.
 
-Conversion of PyBullet's native output to the Fij convention (DESIGN.md):
+Conversion of PyBullet's native output to the Fij convention (docs/conventions.md):
 - A joint modelled as a multibody joint: its force/torque sensor, with
   `jointFeedbackMode = WORLD_SPACE | JOINT_FRAME`, gives the force by the
   parent link on the child link in world axes (`getJointState(...)[2][:2]`).
@@ -16,7 +16,7 @@ Conversion of PyBullet's native output to the Fij convention (DESIGN.md):
   Dampers are applied as external loads, so they are not part of it.
 - Time stamp: every force and torque read after stepping from t_n to
   t_n+1 is the one that acted during that step, i.e. at t_n (stamping it at
-  t_n+1 would turn an O(dt²) error into O(dt); ENGINE_NOTES).
+  t_n+1 would turn an O(dt²) error into O(dt); docs/engines.md).
 - Semi-implicit Euler velocities stand for the step's middle, so the
   velocity at t_n is the mean of the readings before and after the step
   from t_n, and the acceleration at t_n is their difference over dt (the
@@ -49,7 +49,7 @@ from .pybullet_model import NO_CAP, Model, build, p   # p: pybullet, imported qu
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
 #: base.default_step). PyBullet's rocker sensor converges only as O(dt)
-#: (ENGINE_NOTES), so it gets a finer step than the shared 0.01 rad.
+#: (docs/engines.md), so it gets a finer step than the shared 0.01 rad.
 RAD_PER_STEP = 0.002
 #: Steps along φ(t) before t = 0, from the reference state: the loop
 #: closure and the mid-step velocities settle before the first sample.
@@ -67,7 +67,7 @@ class PybulletAdapter(EngineAdapter):
     distribution = "pybullet"
     setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"layout": ("split", "tree")}
     #: `mechval cost` has one line here: the solver is not a setting (Dantzig
-    #: LCP, exact; the iterative ones stop early, ENGINE_NOTES).
+    #: LCP, exact; the iterative ones stop early, docs/engines.md).
     cost_variants = {"Dantzig": {}}
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
@@ -196,7 +196,7 @@ class Stepper:
     def apply_dampers(self, state: dict[str, BodyState], previous: dict[str, float] | None) -> dict[str, float]:
         """Equal and opposite damper loads for the coming step, with rates
         extrapolated to t_n (1.5·v_n − 0.5·v_n−1: the readings are mid-step
-        values; plain v_n is O(dt), ENGINE_NOTES). Returns this step's rates."""
+        values; plain v_n is O(dt), docs/engines.md). Returns this step's rates."""
         rates = self.joint_rates(state)
         previous = previous or rates
         for joint in self.damped:

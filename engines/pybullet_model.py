@@ -3,7 +3,7 @@
 Layout ("split", the default; `plan_layout`): every multibody is a root with
 leaf links only, so every multibody joint has its own valid force/torque
 sensor (PyBullet's sensor is wrong for a joint whose child carries further
-moving links: ENGINE_NOTES, 40–80 % on F12/F32). The ground is the fixed
+moving links: docs/engines.md, 40–80 % on F12/F32). The ground is the fixed
 root of the drive joint and the other ground joints; a prismatic joint
 between two moving bodies makes one of them the free root of the other;
 the remaining joints close the loop as `JOINT_POINT2POINT` constraints.

@@ -1,4 +1,4 @@
-"""The `mechval` command line (DESIGN.md: stable; scripts outside call it)."""
+"""The `mechval` command line (README.md, "Command line": stable; scripts outside call it)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Load and validate scenario files (DESIGN.md schema) into `Scenario`s.
+"""Load and validate scenario files (docs/scenario-format.md) into `Scenario`s.
 
 Every refusal is a `ScenarioError` naming the file, the dotted key and the
 reason; nothing is half-loaded. Defaults for omitted optional tables: no

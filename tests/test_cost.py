@@ -157,7 +157,7 @@ def test_full_sweep_of_fourbar_seed(tmp_path, capsys):
         assert orders["exudyn", "index2", "force"] == pytest.approx(2.0, abs=0.2)
     if "mujoco" in ENGINES:
         assert orders["mujoco", "Euler", "angle"] == pytest.approx(1.0, abs=0.2)
-    if "pybullet" in ENGINES:     # F14 converges only as O(dt) (ENGINE_NOTES)
+    if "pybullet" in ENGINES:     # F14 converges only as O(dt) (docs/engines.md)
         assert orders["pybullet", "Dantzig", "force"] == pytest.approx(1.0, abs=0.2)
     assert "not reached" in capsys.readouterr().out
 

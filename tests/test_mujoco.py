@@ -275,7 +275,7 @@ def test_snapshot_refuses_fields_outside_the_data_buffer(engine):
 
 
 def test_a_blow_up_is_reported_not_logged_to_the_working_directory(engine, tmp_path, monkeypatch):
-    """Euler with the drive's solref at 1·dt is unstable (ENGINE_NOTES): its
+    """Euler with the drive's solref at 1·dt is unstable (docs/engines.md): its
     warnings land in the run's info, not in ./MUJOCO_LOG.TXT or stdout."""
     monkeypatch.chdir(tmp_path)
     scenario = builtin_scenario("slider-crank")

@@ -11,6 +11,13 @@ Conversion of PyBullet's native output to the Fij convention (docs/conventions.m
 - A prismatic joint's couple M on body_j: the sensor's z moment, taken
   about the child link's frame origin, which is the joint's point_j (the
   link frame sits at the joint point; checked against the reference).
+- A prismatic joint between two moving bodies (the slotted lever's slot,
+  the inverted slider's sleeve): F and M are NOT read but derived from the
+  balance of body_j with PyBullet's own motion and its other joint forces
+  (`pybullet_slide`), because the sensor misreports a slide whose parent
+  turns (a Coriolis-like term in ω·ṡ that does not shrink with dt, e.g.
+  1.5 % of M43's peak on shaper-quick-return; measured by the engine
+  finding probe, `findings`). The run info says so (`derived_reactions`).
 - Drive torque: `getJointState(drive)[3]`, the motor torque on the child
   link (the crank), i.e. T on body_j (negated if the child is body_i).
   Dampers are applied as external loads, so they are not part of it.
@@ -22,12 +29,9 @@ Conversion of PyBullet's native output to the Fij convention (docs/conventions.m
   from t_n, and the acceleration at t_n is their difference over dt (the
   acceleration the engine applied in that step).
 
-Known limits of the sensor (measured, not corrected here): at a joint
-to the ground its centripetal term uses the mid-step speed ω(t − dt/2), so
-F14 converges only as O(dt) (hence the finer RAD_PER_STEP); at a prismatic
-joint whose parent rotates (a slot between two moving bodies) the normal
-force and couple carry a Coriolis-like error that does not shrink with dt
-(shaper-quick-return: N43 0.93 %, M43 1.5 % of peak).
+Known limit of the sensor (measured, not corrected here): at a joint to
+the ground its centripetal term uses the mid-step speed ω(t − dt/2), so F14
+converges only as O(dt) (hence the finer RAD_PER_STEP).
 
 Only in-plane force components and the z torque are reported: the
 out-of-plane reactions of a planar loop built from 3D joints are
@@ -46,6 +50,7 @@ from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism
 
 from .base import EngineAdapter, RawRun, default_step
 from .pybullet_model import NO_CAP, Model, build, p   # p: pybullet, imported quietly there
+from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_slides, slide_reaction
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
 #: base.default_step). PyBullet's rocker sensor converges only as O(dt)
@@ -109,10 +114,16 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
         "build_time_s": built - started, "wall_time_s": wall,
     }
     missing = {}
+    slides = derived_slides(mechanism)
     for name, tree_joint in model.tree_joints.items():
-        if tree_joint.joint.kind == "prismatic" and tree_joint.child != tree_joint.joint.body_j:
+        if (tree_joint.joint.kind == "prismatic" and tree_joint.child != tree_joint.joint.body_j
+                and tree_joint.joint not in slides):
             frame[f"{name}.M"] = np.nan
             missing[f"{name}.M"] = "the slide's sensor is on body_i: its couple is about body_i's point, not converted"
+    if slides:
+        info["derived_reactions"] = "; ".join(DERIVED_NOTE.format(joint=j.name, body=j.body_j) for j in slides)
+    if slides and preroll == 0:
+        missing.update({f"{j.name}.{q}": NO_EARLIER_STEP for j in slides for q in ("Fx", "Fy", "M")})
     return RawRun(frame, missing, info)
 
 
@@ -127,6 +138,10 @@ class Stepper:
         self.drive = model.tree_joints[drive.name]
         self.drive_sign = 1.0 if self.drive.child == drive.body_j else -1.0
         self.damped = mechanism.damped_joints
+        self.slides = derived_slides(mechanism)
+        #: External loads (dampers) applied in the current step, per body:
+        #: force x, y and its moment about the world origin.
+        self.loads: dict[str, list[float]] = {}
 
     def run(self) -> tuple[pd.DataFrame, int]:
         n_samples = len(self.times)
@@ -138,16 +153,23 @@ class Stepper:
         target_pos = sign * (law.angle(t_next) - self.dt * law.rate(t_next))
         target_vel = sign * law.rate(t_next)
         h = self.drive.handle
-        before, after, reactions = [], [], []
-        previous_rates = None
+        before, after, reactions, earlier, loads = [], [], [], [], []
+        previous_rates = state = None
+        sampled_at = lambda n: n >= self.preroll and (n - self.preroll) % self.per_sample == 0  # noqa: E731
         for n in range(total):
-            sampled = n >= self.preroll and (n - self.preroll) % self.per_sample == 0
-            if sampled or self.damped:
-                state = self.read_bodies()
+            sampled = sampled_at(n)
+            # A derived slide reaction needs the positions one step before
+            # each sample (pybullet_slide).
+            if sampled or self.damped or (self.slides and sampled_at(n + 1)):
+                previous, state = state, self.read_bodies()
             if sampled:
                 before.append(state)
+                earlier.append(previous if n > 0 else None)
+            self.loads = {}
             if self.damped:
                 previous_rates = self.apply_dampers(state, previous_rates)
+            if sampled:
+                loads.append(self.loads)
             p.setJointMotorControl2(h.uid, h.link, p.POSITION_CONTROL, targetPosition=target_pos[n],
                                     targetVelocity=target_vel[n], positionGain=1.0, velocityGain=1.0,
                                     force=NO_CAP, physicsClientId=self.c)
@@ -155,7 +177,10 @@ class Stepper:
             if sampled:
                 after.append(self.read_bodies())
                 reactions.append(self.read_reactions())
-        return self.assemble(before, after, reactions), total
+        frame = self.assemble(before, after, reactions)
+        if self.slides:
+            frame = frame.assign(**self.slide_reactions(frame, earlier, before, after, loads))
+        return frame, total
 
     def read_bodies(self) -> dict[str, BodyState]:
         """Per body: frame origin x, y, wrapped angle, origin vx, vy, ω.
@@ -205,15 +230,21 @@ class Stepper:
                 if body == GROUND:
                     continue
                 h = self.model.bodies[body]
+                on_body = self.loads.setdefault(body, [0.0, 0.0, 0.0])
                 if joint.kind == "revolute":
                     p.applyExternalTorque(h.uid, h.link, (0.0, 0.0, sign * load), p.WORLD_FRAME,
                                           physicsClientId=self.c)
+                    on_body[2] += sign * load
                     continue
                 ux, uy = _turn(state.get(joint.body_i, AT_REST)[2], joint.axis)
                 sj = state[joint.body_j]
                 px, py = _turn(sj[2], joint.point_j)
-                p.applyExternalForce(h.uid, h.link, (sign * load * ux, sign * load * uy, 0.0),
-                                     (sj[0] + px, sj[1] + py, 0.0), p.WORLD_FRAME, physicsClientId=self.c)
+                fx, fy, x, y = sign * load * ux, sign * load * uy, sj[0] + px, sj[1] + py
+                p.applyExternalForce(h.uid, h.link, (fx, fy, 0.0), (x, y, 0.0), p.WORLD_FRAME,
+                                     physicsClientId=self.c)
+                on_body[0] += fx
+                on_body[1] += fy
+                on_body[2] += x * fy - y * fx
         return rates
 
     def read_reactions(self) -> dict[str, float]:
@@ -233,6 +264,19 @@ class Stepper:
         h = self.drive.handle
         out[DRIVE_TORQUE] = self.drive_sign * p.getJointState(h.uid, h.link, physicsClientId=self.c)[3]
         return out
+
+    def slide_reactions(self, frame: pd.DataFrame, earlier: list, before: list, after: list,
+                        loads: list) -> dict[str, np.ndarray]:
+        """Every derived slide's F and M (pybullet_slide), replacing the
+        sensor's reading."""
+        columns = {}
+        for joint in self.slides:
+            b = joint.body_j
+            track = BodyTrack(np.array([s[b] if s else (np.nan,) * 6 for s in earlier]),
+                              np.array([s[b] for s in before]), np.array([s[b] for s in after]))
+            applied = np.array([step.get(b, (0.0, 0.0, 0.0)) for step in loads])
+            columns.update(slide_reaction(self.mech, joint, track, frame, applied, self.dt))
+        return columns
 
     def assemble(self, before: list, after: list, reactions: list) -> pd.DataFrame:
         """Raw columns at the samples (see the module docstring for stamps)."""

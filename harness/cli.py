@@ -181,7 +181,9 @@ def cmd_run(args) -> int:
         outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout,
                              on_done=done)
     records = discrepancies(outcomes, references)
-    sections = [s for s in (stability_section(records, scenarios),) if s]
+    from mechval.engines.findings import measure_findings
+    from mechval.reports.findings import findings_section
+    sections = [s for s in (stability_section(records, scenarios), findings_section(measure_findings(engines))) if s]
     if args.cost:
         table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
                                            quick=False, repeats=3, quiet=args.quiet)

@@ -109,13 +109,16 @@ def test_existing_report_folder_is_not_overwritten(tmp_path, scene):
 
 
 def test_cli_run_end_to_end(tmp_path):
-    """The main job on one scene and one engine, as a user runs it."""
+    """The main job on one scene and two engines, as a user runs it; the
+    report carries PyBullet's engine findings, measured."""
     out = tmp_path / "report"
     proc = subprocess.run([str(Path(sys.executable).parent / "mechval"), "run", "slider-crank",
-                           "--engine", "exudyn", "--out", str(out), "--quiet"],
+                           "--engine", "exudyn", "--engine", "pybullet", "--out", str(out), "--quiet"],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "| slider-crank |" in proc.stdout and (out / "index.html").exists()
+    html = (out / "index.html").read_text()
+    assert '<h2 id="findings">Engine findings</h2>' in html and '<td class="text">pybullet</td>' in html
 
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

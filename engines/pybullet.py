@@ -91,7 +91,8 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     """Build, step and read one run in its own DIRECT client (always
     disconnected). `prepare(model)` runs on the built model before stepping:
     tests use it to re-arm one PyBullet default and show its effect."""
-    interval = float(times[1] - times[0])
+    # A single instant has no sample interval: the pre-roll steps at the set step.
+    interval = float(times[1] - times[0]) if len(times) > 1 else settings["timestep"]
     per_sample = max(1, int(np.ceil(interval / settings["timestep"] - 1e-9)))
     dt = interval / per_sample
     preroll = int(settings["preroll_steps"])

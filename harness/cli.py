@@ -13,10 +13,12 @@ from tqdm import tqdm
 from mechval.analysis import analyse, format_analysis
 from mechval.compare import passed
 from mechval.cost_tables import cheapest, convergence, format_tables
+from mechval.engines.findings import measure_findings
 from mechval.engines.registry import EngineUnavailable, UnknownEngine, adapter, availability, engine_names
 from mechval.reference import simulate_reference
 from mechval.reports.build import provenance, summary_markdown, write_report
 from mechval.reports.cost_report import cost_section, write_cost_report, write_table
+from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
 from mechval.scenario import ScenarioError
 from mechval.scenarios import builtin_names, load
@@ -181,8 +183,6 @@ def cmd_run(args) -> int:
         outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout,
                              on_done=done)
     records = discrepancies(outcomes, references)
-    from mechval.engines.findings import measure_findings
-    from mechval.reports.findings import findings_section
     sections = [s for s in (stability_section(records, scenarios), findings_section(measure_findings(engines))) if s]
     if args.cost:
         table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),

@@ -36,7 +36,7 @@ from .compare import compare
 from .executors import Done, Executor
 from .linkages import build_mechanism
 from .reference import simulate_reference
-from .scenario import Scenario, Tolerance
+from .scenario import Scenario, Tolerance, require_unique_names
 from .signals import SIGNAL_CLASS, Signals
 
 REFERENCE = "reference"
@@ -131,6 +131,7 @@ def sweep(scenarios: Sequence[Scenario], engines: Iterable[str], executor: Execu
           repeats: int = 3, on_done: Callable[[Point, Done], None] = lambda point, done: None) -> pd.DataFrame:
     """The cost table (COLUMNS) of every engine on every scenario, plus one
     reference row per scenario (its own cost; class and error empty)."""
+    require_unique_names(scenarios)     # the references below are keyed by name
     engines = list(engines)
     points = [Point(s, REFERENCE, "closed form", repeats=repeats) for s in scenarios]
     points += [p for s in scenarios for e in engines for p in points_for(s, e, quick, repeats)]

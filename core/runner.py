@@ -17,7 +17,7 @@ import pandas as pd
 from .compare import COLUMNS, compare
 from .executors import Done, LocalExecutor
 from .reference import simulate_reference
-from .scenario import Scenario
+from .scenario import Scenario, require_unique_names
 from .signals import Signals
 
 
@@ -60,6 +60,8 @@ def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Tas
     """
     from mechval.engines.registry import adapter
     from mechval.linkages import build_mechanism
+    scenarios = list(scenarios)
+    require_unique_names(scenarios)
     tasks = []
     for scenario in scenarios:
         mechanism = build_mechanism(scenario)
@@ -108,4 +110,7 @@ def discrepancies(outcomes: list[Outcome], references: Mapping[str, Signals]) ->
 
 
 def references_for(scenarios: Iterable[Scenario]) -> dict[str, Signals]:
+    """The reference per scenario name (names are refused unless unique)."""
+    scenarios = list(scenarios)
+    require_unique_names(scenarios)
     return {s.name: simulate_reference(s) for s in scenarios}

@@ -159,15 +159,20 @@ def save(path: Path, signals: Signals, meta: Mapping[str, Any]) -> None:
 
 def load(path: Path) -> Baseline:
     """Read a baseline (the .csv and the .json beside it); CorruptBaseline
-    when either cannot be read, lacks what the check needs or the two
-    disagree on the number of samples."""
+    when either cannot be read, lacks what the check needs, the two disagree
+    on the number of samples or a cell is empty without a stated reason."""
     path = Path(path)
     meta = _read_meta(path.with_suffix(".json"))
     frame = _read_frame(path)
     if len(frame) != meta["samples"]:
         raise CorruptBaseline(path, f"{len(frame)} samples, but its .json records {meta['samples']} "
                                     "(a truncated or edited file)")
-    return Baseline(path, Signals(frame, meta["engine"], meta["version"], meta["settings"], meta["missing"]), meta)
+    signals = Signals(frame, meta["engine"], meta["version"], meta["settings"], meta["missing"])
+    gaps = signals.unexplained_gaps()
+    if gaps:    # `save` stores none: a cell lost from a truncated or edited file
+        raise CorruptBaseline(path, f"empty or non-finite cells that its .json gives no reason for "
+                                    f"({'; '.join(gaps)})")
+    return Baseline(path, signals, meta)
 
 
 def _read_meta(path: Path) -> dict[str, Any]:

@@ -138,8 +138,11 @@ def check_run(root: Path, task: Task, signals: Signals, reference: Signals, prov
     if not regression:
         obtained.unlink(missing_ok=True)
         return "ok", "\n".join(lines + ["  verdict: OK"])
-    signals.to_csv(obtained)
-    lines.append(f"  new signals written to {obtained} (diff it with the baseline)")
+    try:
+        signals.to_csv(obtained)
+        lines.append(f"  new signals written to {obtained} (diff it with the baseline)")
+    except OSError as exc:      # e.g. a read-only checkout: the verdict stands without the file
+        lines.append(f"  new signals not written to {obtained}: {exc.strerror or exc}")
     lines.append(f"  verdict: REGRESSION (if the change is intended, record it: "
                  f"{save_command_line(task, root, force=True)})")
     return "regression", "\n".join(lines)

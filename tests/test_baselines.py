@@ -249,6 +249,19 @@ def test_check_catches_and_explains_changes(any_engine, tmp_path, capsys):
     assert "verdict: OK" not in out
 
 
+def test_regression_stands_when_the_obtained_file_cannot_be_written(stored, tmp_path):
+    meta = stored.meta
+    engine_or_skip(meta["engine"])
+    scenario = builtin_scenario(meta["scenario"])
+    task = next(t for t in tasks_for([scenario], [meta["engine"]]) if t.setting == meta["setting"])
+    path = bl.baseline_path(tmp_path, meta["engine"], meta["version"], meta["scenario"], meta["setting"])
+    bl.save(path, stored.signals, meta)
+    bl.obtained_path(path).mkdir()          # in the way of the file
+    new = perturbed(stored.signals, "T12", 1 + 1e-7)
+    verdict, text = check_run(tmp_path, task, new, builtin_reference(meta["scenario"]), provenance())
+    assert verdict == "regression" and f"new signals not written to {bl.obtained_path(path)}" in text
+
+
 def test_save_refuses_non_finite_signals_without_a_reason(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
     assert baseline_cli("save", "--engine", "nonfinite", "--dir", str(tmp_path / "b")) == 1
@@ -287,6 +300,8 @@ CORRUPTIONS = {
                        "unknown column(s) 'time'"),
     "truncated csv": (lambda csv, js: csv.write_text("".join(csv.read_text().splitlines(keepends=True)[:-1])),
                       "samples, but its .json records"),
+    "cut mid-row": (lambda csv, js: csv.write_text(csv.read_text().rstrip("\n").rsplit(",", 3)[0] + "\n"),
+                    "empty or non-finite cells that its .json gives no reason for"),
     "json missing": (lambda csv, js: js.unlink(), "missing (a baseline is a .csv and a .json beside it)"),
     "empty json": (lambda csv, js: js.write_bytes(b""), "invalid JSON: Expecting value"),
     "binary json": (lambda csv, js: js.write_bytes(bytes(range(256))), "not UTF-8 text"),

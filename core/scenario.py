@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 
@@ -109,3 +109,21 @@ class Scenario:
     def settings_for(self, engine: str) -> Mapping[str, Any]:
         table = self.engines.get(engine)
         return dict(table.settings) if table else {}
+
+
+def require_unique_names(scenarios: Iterable[Scenario]) -> None:
+    """Refuse two scenarios of one name in one command: references, report
+    rows, discrepancies.csv and baseline folders are all keyed by the name,
+    so the second would silently be judged against the first's reference."""
+    first_of: dict[str, Scenario] = {}
+    for scenario in scenarios:
+        first = first_of.setdefault(scenario.name, scenario)
+        if first is scenario:
+            continue
+        if first.source is not None and scenario.source is not None \
+                and Path(first.source).resolve() == Path(scenario.source).resolve():
+            reason = f"{scenario.name!r}: the same scenario is given twice"
+        else:
+            reason = (f"{scenario.name!r} is also the name of {first.source or 'another scenario'}; "
+                      "scenario names must be unique in one command (rename one)")
+        raise ScenarioError(scenario.source, "name", reason)

@@ -13,12 +13,20 @@ thread counts, as measured for the committed baselines), so any change beyond
 rounding means the engine, its settings or the scenario changed.
 `compare_to_baseline` returns the verdict per signal as data; the CLI and
 pytest both print and judge from it.
+
+Engine, version, scenario name and setting each become one folder or file
+name under the root, so each must be a plain name (`checked_name`): a
+scenario called "../../x" or "/tmp/x" must not write outside the root. A
+file that cannot be read as a baseline raises `CorruptBaseline` naming the
+file and the reason, so that one bad file is one verdict, not a traceback.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import re
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -54,6 +62,17 @@ ABSOLUTE_FLOOR = 1e-12
 #: moves it by a factor of 2 to 16).
 ACCURACY_CHANGE = 1e-3
 
+#: What a name must look like to be one folder or file name under the root:
+#: ASCII letters, digits and . _ - +, not starting with "." (no "..", no
+#: hidden files) or "-" (not an option in the printed commands), at most 100
+#: characters. No separator, no glob pattern, valid on Windows too.
+SAFE_NAME = re.compile(r"[A-Za-z0-9_+][A-Za-z0-9._+-]{0,99}")
+SAFE_NAME_RULE = "1 to 100 of the characters A-Z a-z 0-9 . _ - +, not starting with . or -"
+#: Keys of a baseline's JSON record that the check reads, with their types.
+REQUIRED_META = {"engine": str, "version": str, "setting": str, "settings": dict, "missing": dict,
+                 "scenario_hash": str, "provenance": dict, "samples": int}
+JSON_TYPE = {str: "a string", dict: "an object", int: "a whole number"}
+
 COLUMNS = ["signal", "class", "max_abs_diff", "t_max", "peak", "relative", "rtol", "threshold",
            "verdict", "reason"]
 
@@ -67,8 +86,37 @@ class Baseline:
     meta: Mapping[str, Any]
 
 
+class UnsafeName(ValueError):
+    """A name that cannot be one folder or file name under the baseline root."""
+
+
+class CorruptBaseline(ValueError):
+    """A stored baseline that cannot be read: names the file and the reason."""
+
+    def __init__(self, path: Path, reason: str):
+        self.path, self.reason = Path(path), reason
+        super().__init__(f"{path}: {reason}")
+
+
+def checked_name(name: str, what: str) -> str:
+    """`name` if it is safe as one path component (SAFE_NAME), else UnsafeName."""
+    if not isinstance(name, str) or not SAFE_NAME.fullmatch(name):
+        raise UnsafeName(f"{what} {name!r} cannot name a baseline folder or file: it must be {SAFE_NAME_RULE}")
+    return name
+
+
 def baseline_path(root: Path, engine: str, version: str, scenario: str, setting: str) -> Path:
-    return Path(root) / engine / version / scenario / f"{setting}.csv"
+    """DIR/engine/version/scenario/setting.csv; every part checked to be a
+    plain name, so the path always lies inside `root`."""
+    parts = [checked_name(engine, "engine"), checked_name(version, f"{engine} version"),
+             checked_name(scenario, "scenario name"), checked_name(setting, "setting")]
+    return Path(root).joinpath(*parts[:3], f"{parts[3]}.csv")
+
+
+def obtained_path(path: Path) -> Path:
+    """Where a check that found a regression writes the new signals, for
+    diffing: SETTING.obtained.csv (git-ignored)."""
+    return Path(path).with_suffix(".obtained.csv")
 
 
 def scenario_hash(scenario: Scenario, engine: str) -> str:
@@ -110,11 +158,81 @@ def save(path: Path, signals: Signals, meta: Mapping[str, Any]) -> None:
 
 
 def load(path: Path) -> Baseline:
-    meta = json.loads(Path(path).with_suffix(".json").read_text(encoding="utf-8"))
-    # pandas ≥ 3 parses %.17g text exactly (tests/test_baselines.py checks it).
-    frame = pd.read_csv(path)
-    return Baseline(Path(path), Signals(frame, meta["engine"], meta["version"], meta["settings"],
-                                        meta["missing"]), meta)
+    """Read a baseline (the .csv and the .json beside it); CorruptBaseline
+    when either cannot be read, lacks what the check needs, the two disagree
+    on the number of samples or a cell is empty without a stated reason."""
+    path = Path(path)
+    meta = _read_meta(path.with_suffix(".json"))
+    frame = _read_frame(path)
+    if len(frame) != meta["samples"]:
+        raise CorruptBaseline(path, f"{len(frame)} samples, but its .json records {meta['samples']} "
+                                    "(a truncated or edited file)")
+    signals = Signals(frame, meta["engine"], meta["version"], meta["settings"], meta["missing"])
+    gaps = signals.unexplained_gaps()
+    if gaps:    # `save` stores none: a cell lost from a truncated or edited file
+        raise CorruptBaseline(path, f"empty or non-finite cells that its .json gives no reason for "
+                                    f"({'; '.join(gaps)})")
+    return Baseline(path, signals, meta)
+
+
+def _read_meta(path: Path) -> dict[str, Any]:
+    try:
+        meta = json.loads(path.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise CorruptBaseline(path, "missing (a baseline is a .csv and a .json beside it)") from None
+    except UnicodeDecodeError as exc:
+        raise CorruptBaseline(path, f"not UTF-8 text (byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
+        raise CorruptBaseline(path, f"invalid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+    except RecursionError:
+        raise CorruptBaseline(path, "invalid JSON: nested too deeply") from None
+    except OSError as exc:
+        raise CorruptBaseline(path, f"cannot be read ({exc.strerror})") from None
+    if not isinstance(meta, dict):
+        raise CorruptBaseline(path, f"expected a JSON object, got {type(meta).__name__}")
+    for key, kind in REQUIRED_META.items():
+        if key not in meta:
+            raise CorruptBaseline(path, f"key {key!r} missing")
+        value = meta[key]
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise CorruptBaseline(path, f"key {key!r}: expected {JSON_TYPE[kind]}, got {json.dumps(value)[:40]}")
+    return meta
+
+
+def _read_frame(path: Path) -> pd.DataFrame:
+    try:
+        with warnings.catch_warnings():
+            # A first row longer than the header: pandas would drop cells
+            # (ParserWarning); later long rows raise ParserError.
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            # pandas ≥ 3 parses %.17g text exactly (tests/test_baselines.py checks it).
+            frame = pd.read_csv(path, index_col=False)
+    except FileNotFoundError:
+        raise CorruptBaseline(path, "missing") from None
+    except pd.errors.EmptyDataError:
+        raise CorruptBaseline(path, "empty file") from None
+    except pd.errors.ParserWarning:
+        raise CorruptBaseline(path, "malformed CSV: the first row has more cells than the header") from None
+    except pd.errors.ParserError as exc:
+        raise CorruptBaseline(path, f"malformed CSV: {str(exc).strip()}") from None
+    except UnicodeDecodeError as exc:
+        raise CorruptBaseline(path, f"not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise CorruptBaseline(path, f"cannot be read ({exc.strerror})") from None
+    unknown = [str(c) for c in frame.columns if c != "t" and c not in SIGNAL_CLASS]
+    if "t" not in frame.columns or unknown:
+        reason = f"unknown column(s) {', '.join(map(repr, unknown))}" if unknown else "no column 't'"
+        raise CorruptBaseline(path, f"{reason} in the header (canonical signal names expected)")
+    if frame.empty:
+        raise CorruptBaseline(path, "no samples (a header only)")
+    for name in frame.columns:
+        if not pd.api.types.is_numeric_dtype(frame[name]) or pd.api.types.is_bool_dtype(frame[name]):
+            cells = frame[name]
+            bad = cells.notna() & pd.to_numeric(cells, errors="coerce").isna()
+            row = int(np.flatnonzero(bad.to_numpy())[0]) if bad.any() else 0
+            raise CorruptBaseline(path, f"column {name}, line {row + 2}: {str(cells.iloc[row])[:40]!r} "
+                                        "is not a number")
+    return frame
 
 
 def _version_key(version: str) -> tuple:
@@ -126,7 +244,10 @@ def _version_key(version: str) -> tuple:
 
 def stored_versions(root: Path, engine: str, scenario: str, setting: str) -> list[str]:
     """Versions of `engine` that have this baseline, oldest first."""
-    found = [p.parent.parent.name for p in (Path(root) / engine).glob(f"*/{scenario}/{setting}.csv")]
+    for name, what in ((engine, "engine"), (scenario, "scenario name"), (setting, "setting")):
+        checked_name(name, what)        # also: no glob pattern in the names
+    found = [p.parent.parent.name for p in Path(root, engine).glob(f"*/{scenario}/{setting}.csv")
+             if SAFE_NAME.fullmatch(p.parent.parent.name)]
     return sorted(found, key=_version_key)
 
 

@@ -5,6 +5,7 @@ what changed (the rule itself is `mechval.harness.baseline.compare_to_baseline`)
 
 from __future__ import annotations
 
+import shlex
 import sys
 from pathlib import Path
 from typing import Any, Mapping
@@ -15,10 +16,13 @@ from mechval.engines.registry import adapter, adapter_class
 from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome, Task
 from mechval.reports.build import provenance
+from mechval.scenario import ScenarioError
+from mechval.scenarios import builtin_path
 from mechval.signals import Signals
 
 from . import baseline as bl
 from .runner import references_for, run_tasks, tasks_for
+
 
 class BaselinesExist(Exception):
     """`save` without --force found baselines it would overwrite."""
@@ -32,8 +36,8 @@ def save_command(scenarios: list, engines: list[str], root: Path, force: bool, w
     """Store a baseline per scenario × engine × variant; refuse, before
     running anything, when any of them exists and `force` is not given."""
     tasks = tasks_for(scenarios, engines)
-    targets = [bl.baseline_path(root, t.engine, adapter_class(t.engine).version(), t.scenario.name, t.setting)
-               for t in tasks]
+    versions = checked_path_names(tasks)
+    targets = [bl.baseline_path(root, t.engine, versions[t.engine], t.scenario.name, t.setting) for t in tasks]
     existing = [p for p in targets if p.exists() or p.with_suffix(".json").exists()]
     if existing and not force:
         listing = "\n".join(f"  {p}" for p in existing)
@@ -45,17 +49,53 @@ def save_command(scenarios: list, engines: list[str], root: Path, force: bool, w
 
     def store(outcome: Outcome) -> None:
         nonlocal failures
-        if outcome.signals is None:
+        signals, task = outcome.signals, outcome.task
+        error = outcome.error
+        gaps = signals.unexplained_gaps() if signals is not None else []
+        if gaps:
+            error = f"non-finite values without a reason ({'; '.join(gaps)})"
+        elif signals is not None and signals.version != versions[task.engine]:
+            error = f"the worker ran {task.engine} {signals.version}, not {versions[task.engine]}"
+        if error:
             failures += 1
-            print(f"FAILED {outcome.task.label}: {outcome.error} (no baseline written)", file=sys.stderr)
+            print(f"FAILED {task.label}: {error} (no baseline written)", file=sys.stderr)
             return
-        path = bl.baseline_path(root, outcome.task.engine, outcome.signals.version, outcome.task.scenario.name,
-                                outcome.task.setting)
-        bl.save(path, outcome.signals, run_metadata(outcome.task, outcome.signals, meta))
+        path = bl.baseline_path(root, task.engine, signals.version, task.scenario.name, task.setting)
+        bl.save(path, signals, run_metadata(task, signals, meta))
+        bl.obtained_path(path).unlink(missing_ok=True)      # a regression's new signals, now recorded
         print(f"saved {path}")
 
     run_tasks(tasks, workers=workers, timeout=TIMEOUT, on_done=store)
     return 1 if failures else 0
+
+
+def checked_path_names(tasks: list[Task]) -> dict[str, str]:
+    """The installed version per engine, after checking that every scenario
+    name and version can be one folder name under --dir (refused before
+    anything runs: a name like "../../x" must not write outside it)."""
+    for task in tasks:
+        try:
+            bl.checked_name(task.scenario.name, "scenario name")
+        except bl.UnsafeName as exc:
+            raise ScenarioError(task.scenario.source, "name", str(exc)) from None
+    versions = {}
+    for engine in dict.fromkeys(t.engine for t in tasks):
+        versions[engine] = adapter_class(engine).version()
+        try:
+            bl.checked_name(versions[engine], f"{engine} version")
+        except bl.UnsafeName as exc:
+            raise bl.UnsafeName(f"the installed {engine} library: {exc}") from None
+    return versions
+
+
+def save_command_line(task: Task, root: Path, force: bool = False) -> str:
+    """The command that records this task's baseline (a built-in scenario
+    by name, any other by its file)."""
+    source = task.scenario.source
+    builtin = source is not None and Path(source).resolve() == builtin_path(task.scenario.name).resolve()
+    scenario = task.scenario.name if builtin or source is None else str(source)
+    words = ["mechval", "baseline", "save", scenario, "--engine", task.engine, "--dir", str(root)]
+    return shlex.join(words + (["--force"] if force else []))
 
 
 def run_metadata(task: Task, signals: Signals, provenance: Mapping[str, str]) -> dict[str, Any]:
@@ -66,16 +106,60 @@ def run_metadata(task: Task, signals: Signals, provenance: Mapping[str, str]) ->
 
 
 def check_run(root: Path, task: Task, signals: Signals, reference: Signals, provenance: Mapping[str, str],
-              rtol: float = bl.DEFAULT_RTOL, signal_rtol: Mapping[str, float] | None = None) -> tuple[str, str]:
-    """Compare one run with its baseline: (verdict, text to print). The
-    verdict is "ok", "regression" or "no baseline"."""
-    base = bl.find(root, task.engine, signals.version, task.scenario.name, task.setting)
-    if base is None:
-        return "no baseline", (f"{task.label}: no baseline in {root}; create one with\n"
-                               f"  mechval baseline save {task.scenario.name} --engine {task.engine} --dir {root}")
+              rtol: float = bl.DEFAULT_RTOL, signal_rtol: Mapping[str, float] | None = None,
+              obtained_root: Path | None = None) -> tuple[str, str]:
+    """Compare one run with the baseline of the installed engine version:
+    (verdict, text to print). The verdict is "ok", "regression", "no
+    baseline" (a comparison with the newest other stored version follows
+    for information) or "corrupt baseline". On a regression the new signals
+    go to SETTING.obtained.csv beside the baseline, or under
+    `obtained_root` in the same layout (pytest: its temporary folder); a
+    check that passes removes a stale one."""
+    name, version = task.scenario.name, signals.version
+    versions = bl.stored_versions(root, task.engine, name, task.setting)
+    if version not in versions:
+        lines = [f"{task.label}: no baseline for the installed {task.engine} {version} in {root}"]
+        if versions:
+            lines.append(f"  for information only, the newest stored version ({task.engine} {versions[-1]}):")
+            try:
+                other = bl.load(bl.baseline_path(root, task.engine, versions[-1], name, task.setting))
+                lines += ["  " + line for line in _comparison(task, other, signals, reference, provenance, rtol,
+                                                               signal_rtol)[0]]
+            except bl.CorruptBaseline as exc:
+                lines.append(f"    unreadable: {exc}")
+        lines.append(f"  verdict: NO BASELINE; record it with\n    {save_command_line(task, root)}")
+        return "no baseline", "\n".join(lines)
+    path = bl.baseline_path(root, task.engine, version, name, task.setting)
+    try:
+        base = bl.load(path)
+    except bl.CorruptBaseline as exc:
+        return "corrupt baseline", (f"{task.label}: corrupt baseline {exc}\n"
+                                    "  verdict: CORRUPT BASELINE; restore it from version control, or record "
+                                    f"it again with\n    {save_command_line(task, root, force=True)}")
+    lines, regression = _comparison(task, base, signals, reference, provenance, rtol, signal_rtol)
+    lines[0] = f"{task.label}: {lines[0]}"
+    obtained = bl.obtained_path(bl.baseline_path(obtained_root or root, task.engine, version, name, task.setting))
+    if not regression:
+        obtained.unlink(missing_ok=True)
+        return "ok", "\n".join(lines + ["  verdict: OK"])
+    try:
+        signals.to_csv(obtained)
+        lines.append(f"  new signals written to {obtained} (diff it with the baseline)")
+    except OSError as exc:      # e.g. a read-only checkout: the verdict stands without the file
+        lines.append(f"  new signals not written to {obtained}: {exc.strerror or exc}")
+    lines.append(f"  verdict: REGRESSION (if the change is intended, record it: "
+                 f"{save_command_line(task, root, force=True)})")
+    return "regression", "\n".join(lines)
+
+
+def _comparison(task: Task, base: bl.Baseline, signals: Signals, reference: Signals,
+                provenance: Mapping[str, str], rtol: float,
+                signal_rtol: Mapping[str, float] | None) -> tuple[list[str], bool]:
+    """The lines describing a run against a stored baseline (the first
+    names the baseline), and whether a signal regressed."""
     provenance_old = base.meta["provenance"]
-    lines = [f"{task.label}: baseline {base.path} ({base.meta['engine']} {base.meta['version']}, "
-             f"saved {provenance_old['date']}, commit {provenance_old['commit']})"]
+    lines = [f"baseline {base.path} ({base.meta['engine']} {base.meta['version']}, "
+             f"saved {provenance_old.get('date', '(no date)')}, commit {provenance_old.get('commit', '(none)')})"]
     lines += [f"  note: {change}" for change in
               bl.context_changes(base.meta, run_metadata(task, signals, provenance))]
     rows = bl.compare_to_baseline(base.signals, signals, rtol, signal_rtol)
@@ -88,21 +172,18 @@ def check_run(root: Path, task: Task, signals: Signals, reference: Signals, prov
     accuracy = bl.accuracy_change(reference, base.signals, signals, task.scenario.tolerance_for(task.engine))
     lines.append("  accuracy vs reference, max |error| / peak per class (old → new):")
     lines += ["    " + line for line in _table(accuracy.set_index("class").T, index=True).splitlines()]
-    if not bl.regressed(rows):
-        return "ok", "\n".join(lines + ["  verdict: OK"])
-    force = " --force" if base.meta["version"] == signals.version else ""
-    lines.append(f"  verdict: REGRESSION (if the change is intended, record it: mechval baseline save "
-                 f"{task.scenario.name} --engine {task.engine} --dir {root}{force})")
-    return "regression", "\n".join(lines)
+    return lines, bl.regressed(rows)
 
 
 def check_command(scenarios: list, engines: list[str], root: Path, rtol: float | None,
                   signal_rtol: Mapping[str, float], workers: int) -> int:
     """Re-run and compare with the stored baselines (rtol None: the
-    default); non-zero exit status on a regression, a run that failed or a
-    missing baseline."""
+    default); non-zero exit status on a regression, a run that failed, a
+    missing or a corrupt baseline. Each task gets its own verdict."""
     rtol = bl.DEFAULT_RTOL if rtol is None else rtol
     meta = provenance()
+    tasks = tasks_for(scenarios, engines)
+    checked_path_names(tasks)
     references = references_for(scenarios)
     verdicts: dict[str, int] = {}
 
@@ -115,7 +196,7 @@ def check_command(scenarios: list, engines: list[str], root: Path, rtol: float |
         verdicts[verdict] = verdicts.get(verdict, 0) + 1
         print(text + "\n", flush=True)
 
-    run_tasks(tasks_for(scenarios, engines), workers=workers, timeout=TIMEOUT, on_done=judge)
+    run_tasks(tasks, workers=workers, timeout=TIMEOUT, on_done=judge)
     print("baseline check: " + ", ".join(f"{v}: {n}" for v, n in sorted(verdicts.items())))
     return 0 if set(verdicts) <= {"ok"} else 1
 

@@ -24,6 +24,7 @@ from mechval.scenario import ScenarioError
 from mechval.scenarios import builtin_names, load
 from mechval.signals import SIGNAL_CLASS
 
+from .baseline import UnsafeName
 from .baseline_run import BaselinesExist, check_command, save_command
 from .cost import sweep
 from .executors import LocalExecutor, executor_for
@@ -281,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (ScenarioError, UnknownEngine, UsageError, BaselinesExist) as exc:
+    except (ScenarioError, UnknownEngine, UsageError, BaselinesExist, UnsafeName) as exc:
         print(f"mechval: error: {exc}", file=sys.stderr)
         return 2
     except EngineUnavailable as exc:

@@ -38,7 +38,7 @@ from mechval.engines.registry import adapter
 from mechval.kinematics import step_rate
 from mechval.linkages import build_mechanism
 from mechval.reference import simulate_reference
-from mechval.scenario import Scenario, Tolerance
+from mechval.scenario import Scenario, Tolerance, require_unique_names
 from mechval.signals import SIGNAL_CLASS, Signals
 
 from .executors import Done, Executor
@@ -124,6 +124,7 @@ def sweep(scenarios: Sequence[Scenario], engines: Iterable[str], executor: Execu
           repeats: int = 3, on_done: Callable[[Point, Done], None] = lambda point, done: None) -> pd.DataFrame:
     """The cost table (COLUMNS) of every engine on every scenario, plus one
     reference row per scenario (its own cost; class and error empty)."""
+    require_unique_names(scenarios)     # the references below are keyed by name
     engines = list(engines)
     points = [Point(s, REFERENCE, "closed form", repeats=repeats) for s in scenarios]
     points += [p for s in scenarios for e in engines for p in points_for(s, e, quick, repeats)]

@@ -18,7 +18,7 @@ from mechval.engines.registry import adapter
 from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome, Task
 from mechval.reference import simulate_reference
-from mechval.scenario import Scenario
+from mechval.scenario import Scenario, require_unique_names
 from mechval.signals import Signals
 
 from .executors import Done, LocalExecutor
@@ -37,6 +37,8 @@ def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Tas
     Hard scenarios run at each engine's default setting only: they test
     stability, and the accuracy variants would multiply their long runs.
     """
+    scenarios = list(scenarios)
+    require_unique_names(scenarios)
     tasks = []
     for scenario in scenarios:
         mechanism = build_mechanism(scenario)
@@ -85,4 +87,7 @@ def discrepancies(outcomes: list[Outcome], references: Mapping[str, Signals]) ->
 
 
 def references_for(scenarios: Iterable[Scenario]) -> dict[str, Signals]:
+    """The reference per scenario name (names are refused unless unique)."""
+    scenarios = list(scenarios)
+    require_unique_names(scenarios)
     return {s.name: simulate_reference(s) for s in scenarios}

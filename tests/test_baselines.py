@@ -2,12 +2,16 @@
 and the baseline lifecycle: a tiny change of an engine's output, a changed
 setting or engine version is caught and explained, an unchanged engine
 passes, and no baseline is ever written or rewritten except by an explicit
-`mechval baseline save` (with --force for an existing one)."""
+`mechval baseline save` (with --force for an existing one). A missing
+baseline of the installed engine version fails; a corrupt one is its own
+verdict; names never lead outside the baseline folder."""
 
 from __future__ import annotations
 
 import json
+import re
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,17 +19,21 @@ import pandas as pd
 import pytest
 
 from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
+from fake_engines import FAKES
 from mechval.harness import baseline as bl
 from mechval.harness.baseline_run import check_run
 from mechval.harness.cli import main
+from mechval.engines import registry
 from mechval.engines.registry import ENGINE_NAMES, availability
 from mechval.reports.build import provenance
 from mechval.harness.runner import tasks_for
+from mechval.outcome import Task
+from mechval.scenarios import builtin_path
 from mechval.signals import Signals
 
 ROOT = Path(__file__).resolve().parent.parent / "baselines"
 NOT_HARD = [n for n in BUILTIN if "hard" not in builtin_scenario(n).tags]
-COMMITTED = sorted(ROOT.rglob("*.csv"))
+COMMITTED = sorted(p for p in ROOT.rglob("*.csv") if not p.name.endswith(".obtained.csv"))
 #: A small, fast scene for the command-line tests (201 samples).
 CLI_SCENARIO = "slider-crank-damped"
 
@@ -34,16 +42,39 @@ CLI_SCENARIO = "slider-crank-damped"
 @pytest.mark.engine
 @pytest.mark.parametrize("task", tasks_for([builtin_scenario(n) for n in NOT_HARD], ENGINE_NAMES),
                          ids=lambda task: f"{task.scenario.name}-{task.engine}-{task.setting}")
-def test_engine_matches_its_baseline(task):
+def test_engine_matches_its_baseline(task, tmp_path):
+    """Fails (never skips) when the installed engine version has no
+    baseline: its message compares with the newest stored version and gives
+    the command that records one. A regression's new signals go to
+    tmp_path (named in the message), never into the committed tree."""
     engine = engine_or_skip(task.engine)
-    path = bl.baseline_path(ROOT, task.engine, engine.version(), task.scenario.name, task.setting)
-    if not path.exists():
-        pytest.skip(f"no committed baseline for {task.engine} {engine.version()} (the installed version); "
-                    f"create one with: mechval baseline save {task.scenario.name} --engine {task.engine} "
-                    f"--dir baselines")
     signals = engine.simulate(task.scenario, task.overrides)
-    verdict, text = check_run(ROOT, task, signals, builtin_reference(task.scenario.name), provenance())
+    verdict, text = check_run(ROOT, task, signals, builtin_reference(task.scenario.name), provenance(),
+                              obtained_root=tmp_path)
     assert verdict == "ok", "\n" + text
+
+
+def test_missing_baseline_of_the_installed_version_fails_not_skips(any_engine, tmp_path, monkeypatch):
+    """After an engine upgrade `-m baseline` must fail with the command that
+    records the new version's baselines, not pass with nothing checked."""
+    task = tasks_for([builtin_scenario(CLI_SCENARIO)], [any_engine])[0]
+    installed = registry.adapter_class(any_engine).version()
+    older = tmp_path / "baselines" / any_engine / "0.0.1" / CLI_SCENARIO
+    shutil.copytree(bl.baseline_path(ROOT, any_engine, installed, CLI_SCENARIO, task.setting).parent, older)
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path / "baselines")
+    try:
+        test_engine_matches_its_baseline(task, tmp_path / "obtained")
+    except pytest.skip.Exception as skipped:
+        pytest.fail(f"skipped instead of failing: {skipped}")
+    except AssertionError as failure:
+        message = str(failure)
+    else:
+        pytest.fail("passed without a baseline of the installed version")
+    assert f"no baseline for the installed {any_engine} {installed}" in message
+    assert f"for information only, the newest stored version ({any_engine} 0.0.1)" in message
+    assert "signals: all" in message        # the comparison with 0.0.1 is shown
+    assert (f"mechval baseline save {CLI_SCENARIO} --engine {any_engine} --dir {tmp_path / 'baselines'}"
+            in message)
 
 
 # --- the comparison rule, on committed data (no engine run) ---------------
@@ -185,13 +216,18 @@ def test_check_catches_and_explains_changes(any_engine, tmp_path, capsys):
     assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 0
     assert "bit-identical" in capsys.readouterr().out
     path = next(tmp_path.rglob("default.csv"))
-    original = bl.load(path)
+    original, original_bytes = bl.load(path), path.read_bytes()
 
     perturbed(original.signals, "T12", 1 + 1e-7).to_csv(path)
     assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 1
     out = capsys.readouterr().out
     assert "T12" in out and "regression" in out and "verdict: REGRESSION" in out
+    obtained = path.with_name("default.obtained.csv")       # the new run, beside the baseline, for diffing
+    assert f"new signals written to {obtained}" in out
+    assert obtained.read_bytes() == original_bytes != path.read_bytes()
     original.signals.to_csv(path)
+    assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 0
+    assert not obtained.exists()        # stale once the check passes
 
     meta = dict(original.meta)
     key = sorted(meta["settings"])[0]
@@ -203,5 +239,175 @@ def test_check_catches_and_explains_changes(any_engine, tmp_path, capsys):
     for json_path in path.parent.glob("*.json"):      # as if saved by version 0.0.1 of the engine
         json_path.write_text(json.dumps(dict(json.loads(json_path.read_text()), version="0.0.1")))
     shutil.move(path.parent.parent, path.parent.parent.with_name("0.0.1"))
-    assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 0
-    assert f"engine version differs: baseline {any_engine} 0.0.1, now {meta['version']}" in capsys.readouterr().out
+    # No baseline of the installed version: a failure naming the command
+    # that records it; the comparison with 0.0.1 is information only.
+    assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 1
+    out = capsys.readouterr().out
+    assert f"no baseline for the installed {any_engine} {meta['version']} in {tmp_path}" in out
+    assert f"engine version differs: baseline {any_engine} 0.0.1, now {meta['version']}" in out
+    assert f"verdict: NO BASELINE; record it with\n    mechval baseline save {CLI_SCENARIO} --engine {any_engine} " \
+           f"--dir {tmp_path}\n" in out
+    assert "verdict: OK" not in out
+
+
+def test_regression_stands_when_the_obtained_file_cannot_be_written(stored, tmp_path):
+    meta = stored.meta
+    engine_or_skip(meta["engine"])
+    scenario = builtin_scenario(meta["scenario"])
+    task = next(t for t in tasks_for([scenario], [meta["engine"]]) if t.setting == meta["setting"])
+    path = bl.baseline_path(tmp_path, meta["engine"], meta["version"], meta["scenario"], meta["setting"])
+    bl.save(path, stored.signals, meta)
+    bl.obtained_path(path).mkdir()          # in the way of the file
+    new = perturbed(stored.signals, "T12", 1 + 1e-7)
+    verdict, text = check_run(tmp_path, task, new, builtin_reference(meta["scenario"]), provenance())
+    assert verdict == "regression" and f"new signals not written to {bl.obtained_path(path)}" in text
+
+
+def test_save_refuses_non_finite_signals_without_a_reason(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    assert baseline_cli("save", "--engine", "nonfinite", "--dir", str(tmp_path / "b")) == 1
+    assert "non-finite values without a reason" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists()
+
+
+# --- corrupt baselines: one verdict each, never a traceback ----------------
+
+def _edit_line(path: Path, index: int, edit) -> None:
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    lines[index] = edit(lines[index].rstrip("\n")) + "\n"
+    path.write_text("".join(lines), encoding="utf-8")
+
+
+def _edit_meta(path: Path, edit) -> None:
+    meta = json.loads(path.read_text(encoding="utf-8"))
+    edit(meta)
+    path.write_text(json.dumps(meta), encoding="utf-8")
+
+
+#: name → (what it does to the .csv and .json, what the verdict must say).
+CORRUPTIONS = {
+    "empty csv": (lambda csv, js: csv.write_bytes(b""), "empty file"),
+    "header only": (lambda csv, js: csv.write_text(csv.read_text().splitlines()[0] + "\n"), "no samples"),
+    "text cell": (lambda csv, js: _edit_line(csv, 3, lambda line: "abc," + line.split(",", 1)[1]),
+                  "column t, line 4: 'abc' is not a number"),
+    "extra cell, first row": (lambda csv, js: _edit_line(csv, 1, lambda line: line + ",1"),
+                              "the first row has more cells than the header"),
+    "extra cell, later row": (lambda csv, js: _edit_line(csv, 5, lambda line: line + ",1"),
+                              "malformed CSV: Error tokenizing data"),
+    "binary csv": (lambda csv, js: csv.write_bytes(bytes(range(256)) * 4), "malformed CSV"),
+    "non-UTF-8 csv": (lambda csv, js: csv.write_bytes(csv.read_bytes().replace(b"\n", b"\n\xe9", 1)),
+                      "not UTF-8 text"),
+    "unknown column": (lambda csv, js: _edit_line(csv, 0, lambda line: line.replace("t,", "time,", 1)),
+                       "unknown column(s) 'time'"),
+    "truncated csv": (lambda csv, js: csv.write_text("".join(csv.read_text().splitlines(keepends=True)[:-1])),
+                      "samples, but its .json records"),
+    "cut mid-row": (lambda csv, js: csv.write_text(csv.read_text().rstrip("\n").rsplit(",", 3)[0] + "\n"),
+                    "empty or non-finite cells that its .json gives no reason for"),
+    "json missing": (lambda csv, js: js.unlink(), "missing (a baseline is a .csv and a .json beside it)"),
+    "empty json": (lambda csv, js: js.write_bytes(b""), "invalid JSON: Expecting value"),
+    "binary json": (lambda csv, js: js.write_bytes(bytes(range(256))), "not UTF-8 text"),
+    "invalid json": (lambda csv, js: js.write_text('{"engine": "x"'), "invalid JSON"),
+    "non-UTF-8 json": (lambda csv, js: js.write_bytes(
+        json.dumps({**json.loads(js.read_text()), "scenario": "é"}, ensure_ascii=False).encode("latin-1")),
+        "not UTF-8 text"),
+    "json not an object": (lambda csv, js: js.write_text("[]"), "expected a JSON object, got list"),
+    "missing key": (lambda csv, js: _edit_meta(js, lambda m: m.pop("missing")), "key 'missing' missing"),
+    "settings null": (lambda csv, js: _edit_meta(js, lambda m: m.update(settings=None)),
+                      "key 'settings': expected an object, got null"),
+    "samples text": (lambda csv, js: _edit_meta(js, lambda m: m.update(samples="201")),
+                     "key 'samples': expected a whole number"),
+}
+
+
+@pytest.mark.parametrize("corruption", CORRUPTIONS)
+def test_corrupt_baseline_is_its_own_verdict(stored, tmp_path, corruption):
+    corrupt, reason = CORRUPTIONS[corruption]
+    meta = stored.meta
+    path = bl.baseline_path(tmp_path, meta["engine"], meta["version"], meta["scenario"], meta["setting"])
+    bl.save(path, stored.signals, meta)
+    corrupt(path, path.with_suffix(".json"))
+    with pytest.raises(bl.CorruptBaseline, match=re.escape(reason)):
+        bl.load(path)
+    task = Task(builtin_scenario(meta["scenario"]), meta["engine"], meta["setting"])
+    verdict, text = check_run(tmp_path, task, stored.signals, builtin_reference(meta["scenario"]), provenance())
+    assert verdict == "corrupt baseline"
+    assert reason in text and "verdict: CORRUPT BASELINE" in text
+    assert f"mechval baseline save {meta['scenario']} --engine {meta['engine']} --dir {tmp_path} --force" in text
+
+
+def two_short_scenes(tmp_path: Path) -> list[str]:
+    paths = []
+    for name in ("short-a", "short-b"):
+        text = builtin_path(CLI_SCENARIO).read_text(encoding="utf-8")
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text.replace(f'name = "{CLI_SCENARIO}"', f'name = "{name}"')
+                        .replace("samples = 201", "samples = 21").replace("end = 1.0", "end = 0.1"), encoding="utf-8")
+        paths.append(str(path))
+    return paths
+
+
+def test_one_corrupt_baseline_does_not_stop_the_check(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    scenes, root = two_short_scenes(tmp_path), tmp_path / "b"
+    command = ["baseline", "save", *scenes, "--engine", "faithful", "--dir", str(root), "--workers", "1"]
+    assert main(command) == 0
+    corrupt = next(root.rglob("short-a/default.json"))
+    corrupt.write_text('{"settings": null}')
+    capsys.readouterr()
+    command[1] = "check"
+    assert main(command) == 1
+    out = capsys.readouterr().out
+    assert f"short-a × faithful: corrupt baseline {corrupt}: key 'engine' missing" in out
+    assert f"mechval baseline save {scenes[0]} --engine faithful --dir {root} --force" in out
+    assert "short-b × faithful: baseline" in out and "verdict: OK" in out
+    assert "baseline check: corrupt baseline: 1, ok: 1" in out
+
+
+# --- names used in paths: nothing is written outside --dir ---------------
+
+def files_under(folder: Path) -> dict[Path, bytes]:
+    return {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+@pytest.mark.parametrize("name", ["../../../../outside", "ABSOLUTE", "a/b", "..", ".hidden", "-x", "a b", "a*",
+                                  "x" * 101])
+def test_unsafe_scenario_name_is_refused_before_anything_is_written(tmp_path, monkeypatch, capsys, name):
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    name = str(tmp_path / "abs") if name == "ABSOLUTE" else name
+    scene, root = Path(two_short_scenes(tmp_path)[0]), tmp_path / "deep" / "er" / "b"
+    scene.write_text(scene.read_text().replace('name = "short-a"', f"name = {json.dumps(name)}"))
+    root.mkdir(parents=True)
+    before = files_under(tmp_path)
+    for action in (["save", "--force"], ["check"]):
+        assert main(["baseline", action[0], str(scene), "--engine", "faithful", "--dir", str(root), *action[1:],
+                     "--workers", "1"]) == 2
+        error = capsys.readouterr().err
+        assert f"{scene}: name: scenario name {name!r} cannot name a baseline folder or file" in error
+    assert files_under(tmp_path) == before and not (tmp_path / "abs").exists()
+    with pytest.raises(bl.UnsafeName):
+        bl.baseline_path(root, "faithful", "1.0", name, "default")
+
+
+def test_safe_names_are_written_only_under_the_dir(tmp_path, monkeypatch):
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    scene, root = two_short_scenes(tmp_path)[0], tmp_path / "b"
+    before = files_under(tmp_path)
+    assert main(["baseline", "save", scene, "--engine", "faithful", "--dir", str(root), "--workers", "1"]) == 0
+    new = set(files_under(tmp_path)) - set(before)
+    assert new and all(p.is_relative_to(root) for p in new)
+
+
+def test_unsafe_engine_version_is_refused(tmp_path, monkeypatch, capsys):
+    """The version string comes from the engine library and is a folder name too."""
+    from fake_engines import Faithful
+
+    class Escaping(Faithful):
+        @classmethod
+        def version(cls):
+            return "../../../escaped"
+    monkeypatch.setattr(sys.modules[__name__], "Escaping", Escaping, raising=False)
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, "faithful": f"{__name__}:Escaping"})
+    before = files_under(tmp_path)
+    assert baseline_cli("save", "--engine", "faithful", "--dir", str(tmp_path / "b"), "--force") == 2
+    assert "the installed faithful library: faithful version '../../../escaped' cannot name" in capsys.readouterr().err
+    assert files_under(tmp_path) == before

@@ -86,10 +86,7 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     """Build, step and read one run in its own DIRECT client (always
     disconnected). `prepare(model)` runs on the built model before stepping:
     tests use it to re-arm one PyBullet default and show its effect."""
-    interval = float(times[1] - times[0])
-    per_sample = max(1, int(np.ceil(interval / settings["timestep"] - 1e-9)))
-    dt = interval / per_sample
-    preroll = int(settings["preroll_steps"])
+    dt, per_sample, preroll = step_plan(times, settings)
     started = time.perf_counter()
     model = build(mechanism, dt, settings["layout"], float(times[0]) - preroll * dt)
     try:
@@ -114,6 +111,14 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
             frame[f"{name}.M"] = np.nan
             missing[f"{name}.M"] = "the slide's sensor is on body_i: its couple is about body_i's point, not converted"
     return RawRun(frame, missing, info)
+
+
+def step_plan(times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, int, int]:
+    """The step dt (the setting, shortened so that a sample interval holds a
+    whole number of steps), steps per sample interval, pre-roll steps."""
+    interval = float(times[1] - times[0])
+    per_sample = max(1, int(np.ceil(interval / settings["timestep"] - 1e-9)))
+    return interval / per_sample, per_sample, int(settings["preroll_steps"])
 
 
 class Stepper:

@@ -181,7 +181,10 @@ def cmd_run(args) -> int:
         outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout,
                              on_done=done)
     records = discrepancies(outcomes, references)
-    sections = [s for s in (stability_section(records, scenarios),) if s]
+    from mechval.reports.audit import audit_section
+    from .audit_run import audit_all
+    audits = audit_all(scenarios, engines)          # builds the models again, simulates nothing
+    sections = [s for s in (stability_section(records, scenarios), audit_section(audits)) if s]
     if args.cost:
         from mechval.reports.cost_report import cost_section, write_table
         from .executors import LocalExecutor
@@ -203,6 +206,21 @@ def cmd_baseline(args) -> int:
         return save_command(scenarios, engines, args.dir, args.force, _workers(args))
     return check_command(scenarios, engines, args.dir, args.rtol, parse_signal_rtol(args.signal_rtol),
                          _workers(args))
+
+
+def cmd_audit(args) -> int:
+    from .audit import format_audit
+    from .audit_run import audit_scenario
+    scenario = _load(args.scenario)
+    status = 0
+    for engine in _engines(args.engine):
+        result = audit_scenario(scenario, engine)
+        verdict = result.error or (f"{result.failing} rows differ" if result.failing else "the model is the scene")
+        print(f"== {scenario.name} × {engine}: {verdict}")
+        if result.table is not None:
+            print(format_audit(result.table))
+        status = status or int(not result.ok)
+    return status
 
 
 def cmd_analyse(args) -> int:
@@ -256,6 +274,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--rtol", type=_positive, help="max |change| / peak of a signal (default 1e-9)")
     q.add_argument("--signal-rtol", action="append", metavar="NAME=R", help="per-signal rtol (repeatable)")
     p.set_defaults(func=cmd_baseline)
+    p = sub.add_parser("audit", help="read back what each engine's model holds and compare it with the scene")
+    p.add_argument("scenario", help="built-in scenario name or path to a .toml file")
+    p.add_argument("--engine", action="append", help="engine to audit (repeatable; default: all installed)")
+    p.set_defaults(func=cmd_audit)
     p = sub.add_parser("analyse", help="engineering analysis: Grashof, transmission angle, toggles")
     p.add_argument("scenario")
     p.set_defaults(func=cmd_analyse)

@@ -116,6 +116,7 @@ def test_cli_run_end_to_end(tmp_path):
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "| slider-crank |" in proc.stdout and (out / "index.html").exists()
+    assert "Model audit: what each engine will simulate" in (out / "index.html").read_text()
 
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

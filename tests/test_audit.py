@@ -194,6 +194,20 @@ def test_exudyn_audit_catches_a_wrong_model(monkeypatch):
                     (SCENE, "gravity y"), (SCENE, "other loads")}
 
 
+@pytest.mark.engine
+def test_pybullet_tree_layout_refuses_a_loop_closed_at_a_slide():
+    """Found by the audit: layout 'tree' closed the shaper's loop at its slot
+    with a point-to-point constraint, a pin (kind 'revolute', no axis), and
+    the locked linkage ran into the 1e12 N force cap."""
+    adapter = engine_or_skip("pybullet")
+    scenario = builtin_scenario("shaper-quick-return")
+    assert "layout 'tree' would close the loop at the prismatic joint 'slot'" in \
+        audit_scenario(scenario, "pybullet", {"layout": "tree"}).error
+    with pytest.raises(ValueError, match="use layout 'split'"):
+        adapter.simulate(scenario, {"layout": "tree"})
+    assert audit_scenario(builtin_scenario("slider-crank"), "pybullet", {"layout": "tree"}).ok
+
+
 # -- command and report -----------------------------------------------------------------
 
 @pytest.mark.engine

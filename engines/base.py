@@ -108,6 +108,11 @@ class EngineAdapter(ABC):
                 settings[key] = float(value) if isinstance(settings[key], float) else value
         return settings
 
+    def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        """What the engine model `run` builds holds, read back and set
+        against the Mechanism (`mechval.audit`); adapters override this."""
+        raise NotImplementedError(f"{self.name}: no model audit")
+
     def simulate(self, scenario: Scenario, overrides: Mapping[str, Any] | None = None) -> Signals:
         """Canonical signals of this engine on the scenario (docs/adapters.md)."""
         mechanism = build_mechanism(scenario)

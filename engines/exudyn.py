@@ -111,6 +111,10 @@ class ExudynAdapter(EngineAdapter):
             "adaptive_step": False,
         }
 
+    def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        from .exudyn_audit import audit_model   # imports this module: not at the top
+        return audit_model(mechanism, times, settings)
+
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         from .exudyn_model import solve   # the engine library, only when running
         clock = time.perf_counter()

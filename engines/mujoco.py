@@ -126,6 +126,10 @@ class MujocoAdapter(EngineAdapter):
             "preroll_timeconsts": 20.0,
         }
 
+    def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        from .mujoco_audit import audit_model   # imports this module: not at the top
+        return audit_model(mechanism, times, settings)
+
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         if settings["mode"] not in ("forward", "inverse"):
             raise ValueError(f"mujoco: unknown mode {settings['mode']!r} (forward, inverse)")

@@ -82,6 +82,10 @@ class PybulletAdapter(EngineAdapter):
             "layout": "split",
         }
 
+    def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        from .pybullet_audit import audit_model   # imports this module: not at the top
+        return audit_model(mechanism, times, settings)
+
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         return run_model(mechanism, times, settings)
 
@@ -91,11 +95,7 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     """Build, step and read one run in its own DIRECT client (always
     disconnected). `prepare(model)` runs on the built model before stepping:
     tests use it to re-arm one PyBullet default and show its effect."""
-    # A single instant has no sample interval: the pre-roll steps at the set step.
-    interval = float(times[1] - times[0]) if len(times) > 1 else settings["timestep"]
-    per_sample = max(1, int(np.ceil(interval / settings["timestep"] - 1e-9)))
-    dt = interval / per_sample
-    preroll = int(settings["preroll_steps"])
+    dt, per_sample, preroll = step_plan(times, settings)
     started = time.perf_counter()
     model = build(mechanism, dt, settings["layout"], float(times[0]) - preroll * dt)
     try:
@@ -126,6 +126,14 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     if slides and preroll == 0:
         missing.update({f"{j.name}.{q}": NO_EARLIER_STEP for j in slides for q in ("Fx", "Fy", "M")})
     return RawRun(frame, missing, info)
+
+
+def step_plan(times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, int, int]:
+    """The step dt (the setting, shortened so that a sample interval holds a
+    whole number of steps), steps per sample interval, pre-roll steps."""
+    interval = float(times[1] - times[0])
+    per_sample = max(1, int(np.ceil(interval / settings["timestep"] - 1e-9)))
+    return interval / per_sample, per_sample, int(settings["preroll_steps"])
 
 
 class Stepper:

@@ -102,7 +102,15 @@ def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
     if GROUND not in (drive.body_i, drive.body_j) or drive.kind != "revolute":
         raise ValueError(f"pybullet: the drive joint {drive.name!r} must be a revolute joint to the ground")
     if layout == "tree":
-        return {GROUND: _breadth_first(mechanism)}
+        links = _breadth_first(mechanism)
+        in_tree = {joint.name for joint, _, _ in links}
+        for joint in mechanism.joints:
+            if joint.kind == "prismatic" and joint.name not in in_tree:
+                # A point-to-point constraint there would pin the slide (found by the model audit).
+                raise ValueError(f"pybullet: layout 'tree' would close the loop at the prismatic joint "
+                                 f"{joint.name!r} with a point-to-point constraint (a pin, not a slide); "
+                                 "use layout 'split'")
+        return {GROUND: links}
     if layout != "split":
         raise ValueError(f"pybullet: unknown layout {layout!r} (known: split, tree)")
     stars: dict[str, list[Link]] = {GROUND: []}

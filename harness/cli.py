@@ -11,6 +11,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from mechval.analysis import analyse, format_analysis
+from mechval.audit import format_audit
 from mechval.compare import passed
 from mechval.cost_tables import cheapest, convergence, format_tables
 from mechval.engines.findings import measure_findings
@@ -18,12 +19,14 @@ from mechval.engines.registry import EngineUnavailable, UnknownEngine, adapter, 
 from mechval.reference import simulate_reference
 from mechval.reports.build import provenance, summary_markdown, write_report
 from mechval.reports.cost_report import cost_section, write_cost_report, write_table
+from mechval.reports.audit import audit_section
 from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
 from mechval.scenario import ScenarioError
 from mechval.scenarios import builtin_names, load
 from mechval.signals import SIGNAL_CLASS
 
+from .audit_run import audit_all, audit_scenario
 from .baseline import UnsafeName
 from .baseline_run import BaselinesExist, check_command, save_command
 from .cost import sweep
@@ -184,7 +187,9 @@ def cmd_run(args) -> int:
         outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout,
                              on_done=done)
     records = discrepancies(outcomes, references)
-    sections = [s for s in (stability_section(records, scenarios), findings_section(measure_findings(engines))) if s]
+    audits = audit_all(scenarios, engines)          # builds the models again, simulates nothing
+    sections = [s for s in (stability_section(records, scenarios), findings_section(measure_findings(engines)),
+                            audit_section(audits)) if s]
     if args.cost:
         table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
                                            quick=False, repeats=3, quiet=args.quiet)
@@ -220,6 +225,19 @@ def cmd_baseline(args) -> int:
         return save_command(scenarios, engines, args.dir, args.force, _workers(args))
     return check_command(scenarios, engines, args.dir, args.rtol, parse_signal_rtol(args.signal_rtol),
                          _workers(args))
+
+
+def cmd_audit(args) -> int:
+    scenario = _load(args.scenario)
+    status = 0
+    for engine in _engines(args.engine):
+        result = audit_scenario(scenario, engine)
+        verdict = result.error or (f"{result.failing} rows differ" if result.failing else "the model is the scene")
+        print(f"== {scenario.name} × {engine}: {verdict}")
+        if result.table is not None:
+            print(format_audit(result.table))
+        status = status or int(not result.ok)
+    return status
 
 
 def cmd_analyse(args) -> int:
@@ -272,6 +290,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--rtol", type=_positive, help="max |change| / peak of a signal (default 1e-9)")
     q.add_argument("--signal-rtol", action="append", metavar="NAME=R", help="per-signal rtol (repeatable)")
     p.set_defaults(func=cmd_baseline)
+    p = sub.add_parser("audit", help="read back what each engine's model holds and compare it with the scene")
+    p.add_argument("scenario", help="built-in scenario name or path to a .toml file")
+    p.add_argument("--engine", action="append", help="engine to audit (repeatable; default: all installed)")
+    p.set_defaults(func=cmd_audit)
     p = sub.add_parser("analyse", help="engineering analysis: Grashof, transmission angle, toggles")
     p.add_argument("scenario")
     p.set_defaults(func=cmd_analyse)

@@ -119,6 +119,7 @@ def test_cli_run_end_to_end(tmp_path):
     assert "| slider-crank |" in proc.stdout and (out / "index.html").exists()
     html = (out / "index.html").read_text()
     assert '<h2 id="findings">Engine findings</h2>' in html and '<td class="text">pybullet</td>' in html
+    assert "Model audit: what each engine will simulate" in html
 
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

@@ -130,8 +130,9 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
 
 def step_plan(times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, int, int]:
     """The step dt (the setting, shortened so that a sample interval holds a
-    whole number of steps), steps per sample interval, pre-roll steps."""
-    interval = float(times[1] - times[0])
+    whole number of steps), steps per sample interval, pre-roll steps.
+    A single instant has no sample interval: the pre-roll steps at the set step."""
+    interval = float(times[1] - times[0]) if len(times) > 1 else settings["timestep"]
     per_sample = max(1, int(np.ceil(interval / settings["timestep"] - 1e-9)))
     return interval / per_sample, per_sample, int(settings["preroll_steps"])
 

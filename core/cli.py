@@ -264,9 +264,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from mechval.engines.registry import EngineUnavailable, UnknownEngine
+    from .interrupts import Interrupted, stop_on_signals
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        with stop_on_signals():
+            return args.func(args)
     except (ScenarioError, UnknownEngine, UsageError) as exc:
         print(f"mechval: error: {exc}", file=sys.stderr)
         return 2
@@ -279,6 +281,9 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:          # e.g. an output path that is a folder
         print(f"mechval: error: cannot write {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return 2
+    except Interrupted as exc:      # the workers are stopped, no folder is left
+        print(f"mechval: stopped by {exc}", file=sys.stderr)
+        return exc.exit_status
     except KeyboardInterrupt:
         print("mechval: interrupted", file=sys.stderr)
         return 130

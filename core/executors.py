@@ -6,19 +6,27 @@ else, and returns one `Done` per item in the items' order: the value, or the
 reason there is none (the exception, a crashed worker, a timeout) as text,
 so a failing task is data and never stops the others. The local pool is
 pebble's (as `mechval.runner`): a task that hangs past the timeout is
-killed, a worker that crashes is replaced. On Dask, fn and its arguments
-travel pickled to the cluster's workers, which must have mechval installed;
-a running Dask task cannot be killed, so the timeout there only stops
-waiting for it.
+killed, a worker that crashes is replaced, the workers die with the parent
+(`interrupts.die_with_parent`), and an interrupted run kills them rather
+than waiting for them. On Dask, fn and its arguments travel pickled to the
+cluster's workers, which must have mechval installed; a running Dask task
+cannot be killed, so the timeout there only stops waiting for it.
 """
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import os
+import signal
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from typing import Any, Callable, Protocol, Sequence
 
 from pebble import ProcessExpired, ProcessPool
+from pebble.pool.process import WORKERS_NAME
+
+from .interrupts import die_with_parent
 
 
 @dataclass(frozen=True)
@@ -49,7 +57,9 @@ class LocalExecutor:
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
         results: list[Done] = []
-        with ProcessPool(max_workers=self.workers, max_tasks=1) as pool:
+        pool = ProcessPool(max_workers=self.workers, max_tasks=1, initializer=die_with_parent,
+                           initargs=(os.getpid(),))
+        try:
             futures = [pool.schedule(fn, args=(item,), timeout=self.timeout) for item in items]
             for index, future in enumerate(futures):
                 try:
@@ -62,7 +72,26 @@ class LocalExecutor:
                     done = Done(error=_describe(exc))
                 results.append(done)
                 on_done(index, done)
+        except BaseException:
+            # Interrupted (Ctrl-C, SIGTERM) or a failure here: stop now.
+            # pebble's close() would wait for the busy workers to finish.
+            _stop_now(pool)
+            raise
+        pool.close()
+        pool.join()
         return results
+
+
+def _stop_now(pool: ProcessPool) -> None:
+    """Stop the pool and SIGKILL its workers: an engine busy in C code does
+    not act on SIGTERM, and pebble waits 3 s per worker before killing it.
+    Engine state is disposable, so nothing is lost."""
+    pool.stop()
+    for process in multiprocessing.active_children():
+        if process.name == WORKERS_NAME and process.pid is not None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(process.pid, signal.SIGKILL)
+    pool.join()
 
 
 class DaskExecutor:

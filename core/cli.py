@@ -143,16 +143,19 @@ def _cost_sweep(scenarios, engines, executor, quick: bool, repeats: int, quiet: 
 def cmd_cost(args) -> int:
     from mechval.reports.cost_report import write_cost_report
     from .cost_tables import format_tables
-    from .executors import executor_for
+    from .executors import dask_address_problem, executor_for
     if args.repeats < 1:
         raise UsageError("--repeats must be at least 1")
+    problem = "" if args.dask is None else dask_address_problem(args.dask)
+    if problem:
+        raise UsageError(f"--dask {args.dask!r}: not a Dask scheduler address: {problem}")
     scenarios = [_load(name) for name in args.scenarios]
     engines = _engines(args.engine)
     out = args.out or default_out_dir("cost")
     if out.exists():
         raise UsageError(f"{out} exists; choose another --out or remove it")
-    table, orders, cheap = _cost_sweep(scenarios, engines, executor_for(args.dask, _workers(args), args.timeout),
-                                       args.quick, args.repeats, args.quiet)
+    executor = executor_for(args.dask, _workers(args), args.timeout, args.dask_connect_timeout)
+    table, orders, cheap = _cost_sweep(scenarios, engines, executor, args.quick, args.repeats, args.quiet)
     write_cost_report(out, table, orders, cheap)
     print(format_tables(table, orders, cheap))
     print(f"report: {out / 'index.html'}")
@@ -212,6 +215,7 @@ def cmd_analyse(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .executors import DASK_CONNECT_TIMEOUT
     parser = argparse.ArgumentParser(prog="mechval", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="scenarios and engines found").set_defaults(func=cmd_list)
@@ -235,7 +239,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="built-in names or .toml paths")
     p.add_argument("--engine", action="append", help="engine to sweep (repeatable; default: all installed)")
     p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
-    p.add_argument("--dask", metavar="ADDRESS", help="run the points on this Dask scheduler instead of locally")
+    p.add_argument("--dask", metavar="ADDRESS",
+                   help="run the points on the Dask scheduler at ADDRESS (tcp://HOST:PORT) instead of locally")
+    p.add_argument("--dask-connect-timeout", type=_positive, default=DASK_CONNECT_TIMEOUT, metavar="SECONDS",
+                   help=f"seconds to wait for the Dask scheduler to answer (default {DASK_CONNECT_TIMEOUT:g})")
     p.add_argument("--repeats", type=_positive_int, default=3, help="timed runs per point (median; default 3)")
     p.add_argument("--quick", action="store_true", help="two points per engine: the default step and ~10x coarser")
     p.add_argument("--workers", type=_count, default=0, help="local worker processes (default: one per core)")
@@ -264,6 +271,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from mechval.engines.registry import EngineUnavailable, UnknownEngine
+    from .executors import SchedulerUnreachable
     from .interrupts import Interrupted, stop_on_signals
     args = build_parser().parse_args(argv)
     try:
@@ -275,11 +283,18 @@ def main(argv: list[str] | None = None) -> int:
     except EngineUnavailable as exc:
         print(f"mechval: engine unavailable: {exc}", file=sys.stderr)
         return 3
+    except SchedulerUnreachable as exc:
+        print(f"mechval: error: {exc}", file=sys.stderr)
+        return 3
     except EngineFailure as exc:
         print(f"mechval: engine failed: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:         # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
     except OSError as exc:          # e.g. an output path that is a folder
-        print(f"mechval: error: cannot write {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        where = f"cannot write {exc.filename}: " if exc.filename else ""
+        print(f"mechval: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except Interrupted as exc:      # the workers are stopped, no folder is left
         print(f"mechval: stopped by {exc}", file=sys.stderr)
@@ -287,9 +302,6 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("mechval: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:         # output piped into `head` and the like
-        sys.stderr.close()
-        return 0
 
 
 if __name__ == "__main__":

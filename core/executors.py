@@ -94,6 +94,36 @@ def _stop_now(pool: ProcessPool) -> None:
     pool.join()
 
 
+#: Seconds to wait for a Dask scheduler to answer before giving up
+#: (`mechval cost --dask-connect-timeout`; Dask's own default is 30 s).
+DASK_CONNECT_TIMEOUT = 10.0
+
+
+class SchedulerUnreachable(RuntimeError):
+    """No Dask scheduler answered at the address given."""
+
+
+def dask_address_problem(address: str) -> str:
+    """Why `address` is not a Dask scheduler address, or "" if it is one:
+    SCHEME://HOST:PORT (or HOST:PORT, meaning tcp), the scheme one Dask
+    knows; inproc://… addresses (a scheduler in this process) as they are."""
+    from distributed.comm import parse_address
+    from distributed.comm.registry import backends
+    if not address.strip():
+        return "empty"
+    scheme, location = parse_address(address, strict=False)
+    if scheme not in backends:
+        return f"unknown scheme {scheme!r} (known: {', '.join(sorted(backends))})"
+    if scheme == "inproc":
+        return ""
+    host, colon, port = location.rpartition(":")
+    if not colon or not host.strip("[]"):
+        return f"expected {scheme}://HOST:PORT"
+    if not port.isdigit() or not 0 < int(port) < 65536:
+        return f"the port {port!r} is not a number from 1 to 65535"
+    return ""
+
+
 class DaskExecutor:
     """The workers of a running Dask distributed scheduler at `address`.
 
@@ -101,15 +131,25 @@ class DaskExecutor:
     (`dask worker ADDRESS --nthreads 1`): tasks sharing a process's cores
     slow each other down. The timeout bounds the whole batch (timeout ×
     number of tasks); tasks unfinished by then are cancelled and reported.
+    A scheduler that does not answer within `connect_timeout` seconds
+    raises SchedulerUnreachable.
     """
 
-    def __init__(self, address: str, timeout: float):
-        self.address, self.timeout = address, timeout
+    def __init__(self, address: str, timeout: float, connect_timeout: float = DASK_CONNECT_TIMEOUT):
+        self.address, self.timeout, self.connect_timeout = address, timeout, connect_timeout
+
+    def _connect(self):
+        from distributed import Client
+        try:
+            return Client(self.address, timeout=self.connect_timeout)
+        except Exception as exc:    # refused, timed out, or not a Dask scheduler at all
+            raise SchedulerUnreachable(f"cannot connect to the Dask scheduler at {self.address} "
+                                       f"(waited up to {self.connect_timeout:g} s): {exc}") from None
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
-        from distributed import Client, as_completed
+        from distributed import as_completed
         results: list[Done | None] = [None] * len(items)
-        with Client(self.address) as client:
+        with self._connect() as client:
             # pure=False: equal items (repeated timings) must each run.
             futures = [client.submit(fn, item, pure=False) for item in items]
             index_of = {future.key: index for index, future in enumerate(futures)}
@@ -126,6 +166,10 @@ class DaskExecutor:
         return [done or Done(error="timed out on the Dask cluster") for done in results]
 
 
-def executor_for(dask_address: str | None, workers: int, timeout: float) -> Executor:
-    """The Dask cluster at `dask_address` if given, else a local pool."""
-    return DaskExecutor(dask_address, timeout) if dask_address else LocalExecutor(workers, timeout)
+def executor_for(dask_address: str | None, workers: int, timeout: float,
+                 connect_timeout: float = DASK_CONNECT_TIMEOUT) -> Executor:
+    """The Dask cluster at `dask_address` if given (checked by
+    dask_address_problem first), else a local pool."""
+    if dask_address is None:
+        return LocalExecutor(workers, timeout)
+    return DaskExecutor(dask_address, timeout, connect_timeout)

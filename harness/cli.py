@@ -30,7 +30,8 @@ from .audit_run import audit_all, audit_scenario
 from .baseline import UnsafeName
 from .baseline_run import BaselinesExist, check_command, save_command
 from .cost import sweep
-from .executors import LocalExecutor, executor_for
+from .executors import DASK_CONNECT_TIMEOUT, LocalExecutor, SchedulerUnreachable, dask_address_problem, executor_for
+from .interrupts import Interrupted, stop_on_signals
 from .runner import discrepancies, references_for, run_tasks, tasks_for
 
 
@@ -157,13 +158,16 @@ def _cost_sweep(scenarios, engines, executor, quick: bool, repeats: int, quiet: 
 def cmd_cost(args) -> int:
     if args.repeats < 1:
         raise UsageError("--repeats must be at least 1")
+    problem = "" if args.dask is None else dask_address_problem(args.dask)
+    if problem:
+        raise UsageError(f"--dask {args.dask!r}: not a Dask scheduler address: {problem}")
     scenarios = [_load(name) for name in args.scenarios]
     engines = _engines(args.engine)
     out = args.out or default_out_dir("cost")
     if out.exists():
         raise UsageError(f"{out} exists; choose another --out or remove it")
-    table, orders, cheap = _cost_sweep(scenarios, engines, executor_for(args.dask, _workers(args), args.timeout),
-                                       args.quick, args.repeats, args.quiet)
+    executor = executor_for(args.dask, _workers(args), args.timeout, args.dask_connect_timeout)
+    table, orders, cheap = _cost_sweep(scenarios, engines, executor, args.quick, args.repeats, args.quiet)
     write_cost_report(out, table, orders, cheap)
     print(format_tables(table, orders, cheap))
     print(f"report: {out / 'index.html'}")
@@ -269,7 +273,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="built-in names or .toml paths")
     p.add_argument("--engine", action="append", help="engine to sweep (repeatable; default: all installed)")
     p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
-    p.add_argument("--dask", metavar="ADDRESS", help="run the points on this Dask scheduler instead of locally")
+    p.add_argument("--dask", metavar="ADDRESS",
+                   help="run the points on the Dask scheduler at ADDRESS (tcp://HOST:PORT) instead of locally")
+    p.add_argument("--dask-connect-timeout", type=_positive, default=DASK_CONNECT_TIMEOUT, metavar="SECONDS",
+                   help=f"seconds to wait for the Dask scheduler to answer (default {DASK_CONNECT_TIMEOUT:g})")
     p.add_argument("--repeats", type=_positive_int, default=3, help="timed runs per point (median; default 3)")
     p.add_argument("--quick", action="store_true", help="two points per engine: the default step and ~10x coarser")
     p.add_argument("--workers", type=_count, default=0, help="local worker processes (default: one per core)")
@@ -303,25 +310,33 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        with stop_on_signals():
+            return args.func(args)
     except (ScenarioError, UnknownEngine, UsageError, BaselinesExist, UnsafeName) as exc:
         print(f"mechval: error: {exc}", file=sys.stderr)
         return 2
     except EngineUnavailable as exc:
         print(f"mechval: engine unavailable: {exc}", file=sys.stderr)
         return 3
+    except SchedulerUnreachable as exc:
+        print(f"mechval: error: {exc}", file=sys.stderr)
+        return 3
     except EngineFailure as exc:
         print(f"mechval: engine failed: {exc}", file=sys.stderr)
         return 1
-    except OSError as exc:          # e.g. an output path that is a folder
-        print(f"mechval: error: cannot write {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("mechval: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:         # output piped into `head` and the like
         sys.stderr.close()
         return 0
+    except OSError as exc:          # e.g. an output path that is a folder
+        where = f"cannot write {exc.filename}: " if exc.filename else ""
+        print(f"mechval: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except Interrupted as exc:      # the workers are stopped, no folder is left
+        print(f"mechval: stopped by {exc}", file=sys.stderr)
+        return exc.exit_status
+    except KeyboardInterrupt:
+        print("mechval: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -6,19 +6,27 @@ else, and returns one `Done` per item in the items' order: the value, or the
 reason there is none (the exception, a crashed worker, a timeout) as text,
 so a failing task is data and never stops the others. The local pool is
 pebble's (as `mechval.harness.runner`): a task that hangs past the timeout is
-killed, a worker that crashes is replaced. On Dask, fn and its arguments
-travel pickled to the cluster's workers, which must have mechval installed;
-a running Dask task cannot be killed, so the timeout there only stops
-waiting for it.
+killed, a worker that crashes is replaced, the workers die with the parent
+(`interrupts.die_with_parent`), and an interrupted run kills them rather
+than waiting for them. On Dask, fn and its arguments travel pickled to the
+cluster's workers, which must have mechval installed; a running Dask task
+cannot be killed, so the timeout there only stops waiting for it.
 """
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import os
+import signal
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from typing import Any, Callable, Protocol, Sequence
 
 from pebble import ProcessExpired, ProcessPool
+from pebble.pool.process import WORKERS_NAME
+
+from .interrupts import die_with_parent
 
 
 @dataclass(frozen=True)
@@ -49,7 +57,9 @@ class LocalExecutor:
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
         results: list[Done] = []
-        with ProcessPool(max_workers=self.workers, max_tasks=1) as pool:
+        pool = ProcessPool(max_workers=self.workers, max_tasks=1, initializer=die_with_parent,
+                           initargs=(os.getpid(),))
+        try:
             futures = [pool.schedule(fn, args=(item,), timeout=self.timeout) for item in items]
             for index, future in enumerate(futures):
                 try:
@@ -62,7 +72,56 @@ class LocalExecutor:
                     done = Done(error=_describe(exc))
                 results.append(done)
                 on_done(index, done)
+        except BaseException:
+            # Interrupted (Ctrl-C, SIGTERM) or a failure here: stop now.
+            # pebble's close() would wait for the busy workers to finish.
+            _stop_now(pool)
+            raise
+        pool.close()
+        pool.join()
         return results
+
+
+def _stop_now(pool: ProcessPool) -> None:
+    """Stop the pool and SIGKILL its workers: an engine busy in C code does
+    not act on SIGTERM, and pebble waits 3 s per worker before killing it.
+    Engine state is disposable, so nothing is lost."""
+    pool.stop()
+    for process in multiprocessing.active_children():
+        if process.name == WORKERS_NAME and process.pid is not None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(process.pid, signal.SIGKILL)
+    pool.join()
+
+
+#: Seconds to wait for a Dask scheduler to answer before giving up
+#: (`mechval cost --dask-connect-timeout`; Dask's own default is 30 s).
+DASK_CONNECT_TIMEOUT = 10.0
+
+
+class SchedulerUnreachable(RuntimeError):
+    """No Dask scheduler answered at the address given."""
+
+
+def dask_address_problem(address: str) -> str:
+    """Why `address` is not a Dask scheduler address, or "" if it is one:
+    SCHEME://HOST:PORT (or HOST:PORT, meaning tcp), the scheme one Dask
+    knows; inproc://… addresses (a scheduler in this process) as they are."""
+    from distributed.comm import parse_address
+    from distributed.comm.registry import backends
+    if not address.strip():
+        return "empty"
+    scheme, location = parse_address(address, strict=False)
+    if scheme not in backends:
+        return f"unknown scheme {scheme!r} (known: {', '.join(sorted(backends))})"
+    if scheme == "inproc":
+        return ""
+    host, colon, port = location.rpartition(":")
+    if not colon or not host.strip("[]"):
+        return f"expected {scheme}://HOST:PORT"
+    if not port.isdigit() or not 0 < int(port) < 65536:
+        return f"the port {port!r} is not a number from 1 to 65535"
+    return ""
 
 
 class DaskExecutor:
@@ -72,15 +131,25 @@ class DaskExecutor:
     (`dask worker ADDRESS --nthreads 1`): tasks sharing a process's cores
     slow each other down. The timeout bounds the whole batch (timeout ×
     number of tasks); tasks unfinished by then are cancelled and reported.
+    A scheduler that does not answer within `connect_timeout` seconds
+    raises SchedulerUnreachable.
     """
 
-    def __init__(self, address: str, timeout: float):
-        self.address, self.timeout = address, timeout
+    def __init__(self, address: str, timeout: float, connect_timeout: float = DASK_CONNECT_TIMEOUT):
+        self.address, self.timeout, self.connect_timeout = address, timeout, connect_timeout
+
+    def _connect(self):
+        from distributed import Client
+        try:
+            return Client(self.address, timeout=self.connect_timeout)
+        except Exception as exc:    # refused, timed out, or not a Dask scheduler at all
+            raise SchedulerUnreachable(f"cannot connect to the Dask scheduler at {self.address} "
+                                       f"(waited up to {self.connect_timeout:g} s): {exc}") from None
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
-        from distributed import Client, as_completed
+        from distributed import as_completed
         results: list[Done | None] = [None] * len(items)
-        with Client(self.address) as client:
+        with self._connect() as client:
             # pure=False: equal items (repeated timings) must each run.
             futures = [client.submit(fn, item, pure=False) for item in items]
             index_of = {future.key: index for index, future in enumerate(futures)}
@@ -97,6 +166,10 @@ class DaskExecutor:
         return [done or Done(error="timed out on the Dask cluster") for done in results]
 
 
-def executor_for(dask_address: str | None, workers: int, timeout: float) -> Executor:
-    """The Dask cluster at `dask_address` if given, else a local pool."""
-    return DaskExecutor(dask_address, timeout) if dask_address else LocalExecutor(workers, timeout)
+def executor_for(dask_address: str | None, workers: int, timeout: float,
+                 connect_timeout: float = DASK_CONNECT_TIMEOUT) -> Executor:
+    """The Dask cluster at `dask_address` if given (checked by
+    dask_address_problem first), else a local pool."""
+    if dask_address is None:
+        return LocalExecutor(workers, timeout)
+    return DaskExecutor(dask_address, timeout, connect_timeout)

@@ -1,11 +1,18 @@
 """Stand-in engines for testing the harness's isolation of failures: one
-crashes the worker process, one hangs, one returns NaN, one raises, one is
-a faithful copy of the reference. They are registered only inside tests."""
+crashes the worker process, one hangs, one spins on the CPU, one returns
+NaN, one raises, one is a faithful copy of the reference. They are
+registered only inside tests, or by running this file as `mechval`:
+
+    python tests/fake_engines.py run SCENARIO --engine busy ...
+"""
 
 from __future__ import annotations
 
 import os
+import signal
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -42,6 +49,23 @@ class Hanging(_Fake):
         time.sleep(600)
 
 
+class Busy(_Fake):
+    """Spins on the CPU like an engine stuck in a long step and, like one
+    busy in C code, does not act on SIGTERM. It first creates a file named
+    by its PID in $MECHVAL_TEST_BUSY_DIR, so a test knows it is running."""
+
+    name = "busy"
+
+    def run(self, mechanism, times, settings):
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        if os.environ.get("MECHVAL_TEST_BUSY_DIR"):
+            Path(os.environ["MECHVAL_TEST_BUSY_DIR"], str(os.getpid())).touch()
+        deadline = time.monotonic() + 60        # a bound, should a test leave it behind
+        while time.monotonic() < deadline:
+            pass
+        raise RuntimeError("busy for 60 s")
+
+
 class NonFinite(_Fake):
     name = "nonfinite"
 
@@ -58,4 +82,13 @@ class Raising(_Fake):
         raise RuntimeError("solver diverged")
 
 
-FAKES = {cls.name: f"fake_engines:{cls.__name__}" for cls in (Faithful, Crashing, Hanging, NonFinite, Raising)}
+FAKES = {cls.name: f"fake_engines:{cls.__name__}"
+         for cls in (Faithful, Crashing, Hanging, Busy, NonFinite, Raising)}
+
+
+if __name__ == "__main__":
+    # `mechval` with the fakes registered; the workers, forked, inherit them.
+    from mechval.harness import cli
+    from mechval.engines import registry
+    registry.ADAPTERS.update(FAKES)
+    sys.exit(cli.main())

@@ -118,3 +118,27 @@ def test_bad_numbers_and_paths_refused(tmp_path):
     for command, message in checks:
         out = mechval(*command)
         assert out.returncode == 2 and message in out.stderr and "Traceback" not in out.stderr, command
+
+
+def test_an_error_without_a_path_names_no_path(monkeypatch, capsys):
+    """An OSError that is not about a file (a network timeout) is not
+    reported as "cannot write" with an empty path."""
+    from mechval.harness import cli
+
+    def time_out(args):
+        raise TimeoutError("Timed out trying to connect")
+    monkeypatch.setattr(cli, "cmd_list", time_out)
+    assert cli.main(["list"]) == 2
+    assert capsys.readouterr().err == "mechval: error: Timed out trying to connect\n"
+
+
+def test_output_into_a_closed_pipe_is_quiet(tmp_path):
+    """`mechval list | head -1`: the reader goes away; no error, status 0."""
+    import os
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        out = subprocess.run([MECHVAL, "list"], stdout=write_end, stderr=subprocess.PIPE, text=True, timeout=300)
+    finally:
+        os.close(write_end)
+    assert out.returncode == 0 and out.stderr == ""

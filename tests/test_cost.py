@@ -170,3 +170,37 @@ def test_run_with_cost_adds_the_section(tmp_path, short_toml):
     main(["run", str(short_toml), "--engine", engine, "--cost", "--out", str(out), "--quiet"])
     assert 'id="cost"' in (out / "index.html").read_text()
     assert (out / "cost.csv").exists()
+
+
+@pytest.mark.parametrize("address,reason", [
+    ("garbage", "expected tcp://HOST:PORT"),
+    ("tcp://127.0.0.1:notaport", "the port 'notaport' is not a number from 1 to 65535"),
+    ("tcp://127.0.0.1:70000", "the port '70000' is not a number from 1 to 65535"),
+    ("tcp://:8786", "expected tcp://HOST:PORT"),
+    ("http://127.0.0.1:8786", "unknown scheme 'http'"),
+    ("", "empty"),
+])
+def test_bad_dask_address_refused_before_any_run(tmp_path, capsys, short_toml, address, reason):
+    out = tmp_path / "cost"
+    assert main(["cost", str(short_toml), "--quick", "--dask", address, "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"mechval: error: --dask {address!r}: not a Dask scheduler address: {reason}")
+    assert err.count("\n") == 1 and not out.exists()
+
+
+def test_unreachable_dask_scheduler_is_one_line_and_quick(tmp_path, capsys, short_toml):
+    """Nobody listens on the port: exit 3 after the stated connect timeout,
+    not Dask's 30 s default, and no "cannot write" with an empty path."""
+    import socket
+    import time
+    with socket.socket() as sock:           # a port that was free a moment ago
+        sock.bind(("127.0.0.1", 0))
+        address = f"tcp://127.0.0.1:{sock.getsockname()[1]}"
+    out = tmp_path / "cost"
+    start = time.monotonic()
+    status = main(["cost", str(short_toml), "--quick", "--dask", address, "--dask-connect-timeout", "1",
+                   "--out", str(out), "--quiet"])
+    assert status == 3 and time.monotonic() - start < 5
+    err = capsys.readouterr().err
+    assert err.startswith(f"mechval: error: cannot connect to the Dask scheduler at {address} (waited up to 1 s): ")
+    assert err.count("\n") == 1 and not out.exists()

@@ -1,0 +1,273 @@
+"""Stopping a run: SIGINT, SIGTERM and SIGKILL of `mechval` while an engine
+is busy, and SIGKILL of a busy worker. After each: the exit status, no
+process of the run left, no folder left behind.
+
+The engine is the stand-in `busy`: it spins on the CPU and ignores SIGTERM,
+as an engine busy in C code does. `mechval run` runs as a command
+(`python tests/fake_engines.py run …`, the command line with the stand-ins
+registered) in a session of its own; the other cases run in this process,
+to keep the suite short. Linux only (/proc; workers die with their parent
+through prctl(PR_SET_PDEATHSIG)).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from mechval.scenarios import builtin_path
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux process semantics")
+
+FAKE_CLI = str(Path(__file__).with_name("fake_engines.py"))
+#: Seconds from the signal to the end of the run that the test accepts (the
+#: requirement is one second; the rest is slack for a loaded machine).
+STOP_WITHIN = 2.0
+
+
+def short_scene(folder: Path, name: str) -> Path:
+    """slider-crank cut to 0.1 s and 11 samples, named `name`."""
+    text = builtin_path("slider-crank").read_text(encoding="utf-8")
+    text = text.replace('name = "slider-crank"', f'name = "{name}"')
+    path = folder / f"{name}.toml"
+    path.write_text(text.replace("end = 2.0", "end = 0.1").replace("samples = 401", "samples = 11"),
+                    encoding="utf-8")
+    return path
+
+
+def live_members(session: int) -> list[int]:
+    """PIDs of the live (not zombie) processes of a session, from /proc."""
+    pids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rpartition(")")[2].split()
+        except OSError:
+            continue        # ended meanwhile
+        state, session_id = fields[0], int(fields[3])
+        if session_id == session and state != "Z":
+            pids.append(int(stat.parent.name))
+    return pids
+
+
+def alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+class Run:
+    """A `mechval` command with the fakes, started in its own session. Its
+    output goes to files: workers left behind would hold pipes open."""
+
+    def __init__(self, tmp_path: Path, *args: str):
+        self.busy_dir = tmp_path / "busy"
+        self.busy_dir.mkdir()
+        self.stdout, self.stderr = tmp_path / "stdout.txt", tmp_path / "stderr.txt"
+        env = dict(os.environ, MECHVAL_TEST_BUSY_DIR=str(self.busy_dir))
+        with self.stdout.open("w") as out, self.stderr.open("w") as err:
+            self.process = subprocess.Popen([sys.executable, FAKE_CLI, *args], stdout=out, stderr=err, env=env,
+                                            start_new_session=True)
+
+    def wait_busy(self, count: int) -> list[int]:
+        """The PIDs of `count` busy workers, once they are spinning."""
+        deadline = time.monotonic() + 120
+        while len(pids := [int(p.name) for p in self.busy_dir.iterdir()]) < count:
+            if self.process.poll() is not None or time.monotonic() > deadline:
+                self.kill()
+                pytest.fail(f"no {count} busy workers: {self.stderr.read_text()}")
+            time.sleep(0.05)
+        return pids
+
+    def finish(self, timeout: float = 120) -> tuple[int, str]:
+        """The exit status and stderr of the main process, once it ends."""
+        status = self.process.wait(timeout=timeout)
+        return status, self.stderr.read_text()
+
+    def kill(self) -> None:
+        """Leave nothing behind, whatever the test found."""
+        for pid in live_members(self.process.pid):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+
+
+@pytest.fixture
+def started(tmp_path):
+    runs: list[Run] = []
+
+    def start(*args: str) -> Run:
+        runs.append(Run(tmp_path, *map(str, args)))
+        return runs[-1]
+    yield start
+    for run in runs:
+        run.kill()
+
+
+def nothing_written(out: Path) -> bool:
+    """Neither `out` nor a temporary sibling of it exists."""
+    return not out.parent.exists() or not any(out.parent.iterdir())
+
+
+def assert_all_ended(session: int, pids: list[int]) -> None:
+    """Every process of the run's session ends within a second (a worker
+    killed by its parent's death may stay a zombie until PID 1 reaps it)."""
+    deadline = time.monotonic() + 1.0
+    while (left := live_members(session) + [p for p in pids if alive(p)]) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert not left, f"processes left running: {sorted(set(left))}"
+
+
+@pytest.mark.parametrize("signum,to_group", [(signal.SIGINT, True), (signal.SIGTERM, False)],
+                         ids=["SIGINT-group", "SIGTERM"])
+def test_a_signal_stops_mechval_run_at_once(tmp_path, started, signum, to_group):
+    """SIGINT (to the process group, as a terminal's Ctrl-C) and SIGTERM (to
+    the main process, as `timeout` and CI): exit 128 + signum within the
+    bound, one line on stderr, no worker left, nothing written."""
+    scenes = [short_scene(tmp_path, "short-a"), short_scene(tmp_path, "short-b")]
+    out = tmp_path / "reports" / "out"
+    run = started("run", *scenes, "--engine", "busy", "--workers", "2", "--out", out, "--quiet")
+    busy = run.wait_busy(2)
+    sent = time.monotonic()
+    (os.killpg if to_group else os.kill)(run.process.pid, signum)
+    status, stderr = run.finish()
+    elapsed = time.monotonic() - sent
+    assert status == 128 + signum, stderr
+    assert elapsed < STOP_WITHIN
+    assert stderr.strip() == f"mechval: stopped by {signal.Signals(signum).name}"
+    assert_all_ended(run.process.pid, busy)
+    assert nothing_written(out)
+
+
+def test_sigkill_of_mechval_kills_its_workers(tmp_path, started):
+    """No handler runs on SIGKILL: the kernel ends the workers (prctl
+    PR_SET_PDEATHSIG), which would otherwise spin on under PID 1."""
+    scenes = [short_scene(tmp_path, "short-a"), short_scene(tmp_path, "short-b")]
+    out = tmp_path / "reports" / "out"
+    run = started("run", *scenes, "--engine", "busy", "--workers", "2", "--out", out, "--quiet")
+    busy = run.wait_busy(2)
+    run.process.kill()
+    assert run.finish()[0] == -signal.SIGKILL
+    assert_all_ended(run.process.pid, busy)
+    assert nothing_written(out)
+
+
+# --- In this process (no start-up time): the same stopping code under the
+# other commands, a worker's death, a signal inside the report writer. The
+# signal is SIGTERM, so that without mechval's handler the test's own one
+# fails the test instead of the default action ending pytest.
+
+class NotHandled(Exception):
+    pass
+
+
+@pytest.fixture
+def sigterm_guard():
+    """SIGTERM fails the test unless mechval handles it (and restores this)."""
+    def not_handled(signum, frame):
+        raise NotHandled("SIGTERM left to its default action (death, workers and folders left behind)")
+    previous = signal.signal(signal.SIGTERM, not_handled)
+    yield
+    assert signal.getsignal(signal.SIGTERM) is not_handled      # mechval restored it
+    signal.signal(signal.SIGTERM, previous)
+
+
+@pytest.fixture
+def fakes(tmp_path, monkeypatch, sigterm_guard):
+    """The stand-in engines registered; busy workers announce themselves in
+    the returned folder."""
+    from fake_engines import FAKES
+    from mechval.engines import registry
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    busy_dir = tmp_path / "busy"
+    busy_dir.mkdir()
+    monkeypatch.setenv("MECHVAL_TEST_BUSY_DIR", str(busy_dir))
+    return busy_dir
+
+
+def test_a_second_signal_does_not_cut_the_clean_up_short(sigterm_guard):
+    from mechval.harness.interrupts import Interrupted, stop_on_signals
+    cleaned = False
+    with pytest.raises(Interrupted) as caught:
+        with stop_on_signals():
+            try:
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(30)          # the handler raises before this ends
+            finally:
+                os.kill(os.getpid(), signal.SIGINT)     # an impatient Ctrl-C: ignored
+                time.sleep(0.05)
+                cleaned = True
+    assert cleaned and caught.value.signum == signal.SIGTERM and caught.value.exit_status == 143
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def when_busy(busy_dir: Path, count: int, act) -> threading.Thread:
+    """act(pids) on a thread, once `count` busy workers are spinning."""
+    def wait():
+        deadline = time.monotonic() + 120
+        while len(pids := [int(p.name) for p in busy_dir.iterdir()]) < count and time.monotonic() < deadline:
+            time.sleep(0.05)
+        act(pids)
+    thread = threading.Thread(target=wait, daemon=True)
+    thread.start()
+    return thread
+
+
+@pytest.mark.parametrize("command", ["cost", "baseline"])
+def test_sigterm_stops_cost_and_baseline_at_once(tmp_path, fakes, command):
+    from mechval.harness import cli
+    scenes = [str(short_scene(tmp_path, "short-a")), str(short_scene(tmp_path, "short-b"))]
+    out = tmp_path / "reports" / "out"
+    args = {"cost": ["cost", *scenes, "--quick", "--repeats", "1", "--out", str(out), "--quiet"],
+            "baseline": ["baseline", "save", *scenes, "--dir", str(out)]}[command]
+    busy: list[int] = []
+    sent: list[float] = []
+
+    def terminate(pids):
+        busy.extend(pids)
+        sent.append(time.monotonic())
+        os.kill(os.getpid(), signal.SIGTERM)
+    when_busy(fakes, 2, terminate)
+    status = cli.main([*args, "--engine", "busy", "--workers", "2"])
+    assert status == 143 and len(busy) == 2
+    assert time.monotonic() - sent[0] < STOP_WITHIN
+    assert not [pid for pid in busy if alive(pid)]
+    assert nothing_written(out)
+
+
+def test_sigkill_of_a_worker_fails_only_its_task(tmp_path, fakes):
+    """The killed worker's task fails as "worker crashed"; the others run."""
+    from mechval.harness.runner import Task, run_tasks
+    from mechval.scenarios import load
+    scenario = load(str(short_scene(tmp_path, "short-a")))
+    tasks = [Task(scenario, "busy"), Task(scenario, "faithful"), Task(scenario, "faithful")]
+    killer = when_busy(fakes, 1, lambda pids: os.kill(pids[0], signal.SIGKILL))
+    outcomes = run_tasks(tasks, workers=2, timeout=60.0)
+    killer.join()
+    assert outcomes[0].signals is None and outcomes[0].error == "worker crashed (exit code -9)"
+    assert [o.error for o in outcomes[1:]] == ["", ""] and all(o.signals is not None for o in outcomes[1:])
+
+
+def test_sigterm_while_the_report_is_written_leaves_no_folder(tmp_path, fakes, monkeypatch, capsys):
+    """The signal arrives inside the atomic folder writer, whose temporary
+    folder then exists: it is removed, exit status 143, one line."""
+    from mechval.harness import cli
+    from mechval.reports import build
+
+    def section_then_sigterm(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(30)      # mechval's handler raises before this ends
+    monkeypatch.setattr(build, "_scenario_section", section_then_sigterm)
+    out = tmp_path / "reports" / "run"
+    status = cli.main(["run", str(short_scene(tmp_path, "short-a")), "--engine", "faithful", "--workers", "1",
+                       "--out", str(out), "--quiet"])
+    assert status == 143
+    assert capsys.readouterr().err == "mechval: stopped by SIGTERM\n"
+    assert nothing_written(out)

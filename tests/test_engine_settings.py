@@ -15,8 +15,8 @@ import pytest
 from conftest import engine_or_skip
 from mechval import cli
 from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, adapter_class
-from mechval.scenario import EngineTable, ScenarioError
 from mechval.linkages import build_mechanism
+from mechval.scenario import EngineTable, ScenarioError
 from mechval.scenarios import builtin_path, parse
 from scenario_data import slider_crank
 
@@ -160,16 +160,17 @@ def test_hostile_scenario_name_runs(tmp_path, engine):
     assert csv.exists()
 
 
-def test_solimp_as_a_list_or_a_string(tmp_path):
-    """solimp as a TOML list or a string of numbers: both accepted, recorded
-    as the string of the checked numbers, and compiled as those numbers."""
+def test_solimp_as_a_list_or_a_string():
+    """solimp in a file as a TOML list or a string of numbers: both
+    accepted, recorded as the string of the checked numbers, and compiled
+    as those numbers."""
     engine = engine_or_skip("mujoco")
-    scenario = parse(slider_crank(time={"end": 0.1, "samples": 11}), "x")
-    mech = build_mechanism(scenario)
+    from mechval.engines.mujoco import Model
     for value in ([0.9, 0.95, 0.001, 0.5, 2], "0.9  0.95\t0.001 0.5 2"):
-        settings = engine.settings_for(scenario, mech, {"solimp": value})
+        scenario = parse(slider_crank(time={"end": 0.1, "samples": 11}, engines={"mujoco": {"solimp": value}}), "x")
+        mech = build_mechanism(scenario)
+        settings = engine.settings_for(scenario, mech)
         assert settings["solimp"] == "0.9 0.95 0.001 0.5 2.0"
-        from mechval.engines.mujoco import Model
         model = Model(mech, scenario.time.t, settings)
         for eq in range(model.m.neq):
             assert list(model.m.eq_solimp[eq]) == [0.9, 0.95, 0.001, 0.5, 2.0]

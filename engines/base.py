@@ -28,6 +28,12 @@ from mechval.mechanism import Mechanism
 from mechval.scenario import Scenario, ScenarioError
 from mechval.signals import Signals, canonical_signals
 
+from .settings import TIMESTEP, Setting
+
+#: The finest step a setting may ask for, as steps per sample interval:
+#: beyond it a run cannot finish (nor its states fit in memory).
+MAX_STEPS_PER_SAMPLE = 10**6
+
 
 @dataclass(frozen=True)
 class RawRun:
@@ -40,14 +46,27 @@ class RawRun:
     info: Mapping[str, Any] = field(default_factory=dict)
 
 
+class Unrepresentable(ValueError):
+    """The engine cannot represent this (valid) scene, e.g. a mass below
+    what its compiler accepts. `key` names the scenario key at fault;
+    `simulate` reports it as a ScenarioError with the scenario's file."""
+
+    def __init__(self, key: str, reason: str):
+        self.key, self.reason = key, reason
+        super().__init__(f"{key}: {reason}")
+
+    def __reduce__(self):
+        return type(self), (self.key, self.reason)
+
+
 class EngineAdapter(ABC):
     name: ClassVar[str]
     #: The import name of the engine library, and its distribution on PyPI.
     library: ClassVar[str]
     distribution: ClassVar[str]
-    #: Allowed values of string settings, and settings that must be > 0.
-    setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {}
-    positive_settings: ClassVar[tuple[str, ...]] = ("timestep",)
+    #: What each setting accepts (type, range or choices; see `settings`).
+    #: Its keys are exactly those of `default_settings`.
+    settings_spec: ClassVar[Mapping[str, Setting]] = {"timestep": TIMESTEP}
     #: Settings reported by `mechval run`: name → overrides of the defaults.
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
     #: Work-precision sweeps (`mechval cost`): the setting that is the time
@@ -82,30 +101,30 @@ class EngineAdapter(ABC):
     def settings_for(self, scenario: Scenario, mechanism: Mechanism,
                      overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
         """Derived defaults, then the scenario's [engines.NAME] table, then
-        explicit overrides. An unknown key, a wrong type, a value outside
-        `setting_choices` or `positive_settings`, or a step that does not
-        divide the sample interval is refused with the file and key."""
+        explicit overrides. An unknown key, a value `settings_spec` refuses
+        (type, range, choices), or a step that does not divide the sample
+        interval is refused with the file and key, before any run."""
         settings = self.default_settings(mechanism, scenario.time.t)
         for origin, table in (("file", scenario.settings_for(self.name)), ("override", overrides or {})):
             source = scenario.source if origin == "file" else "settings override"
             for key, value in table.items():
                 fail = lambda reason: ScenarioError(source, f"engines.{self.name}.{key}", reason)
-                if key not in settings:
-                    raise fail(f"unknown setting (known: {', '.join(sorted(settings))})")
-                if type(value) is not type(settings[key]) and not (
-                        isinstance(value, (int, float)) and isinstance(settings[key], float)
-                        and not isinstance(value, bool)):
-                    raise fail(f"expected {type(settings[key]).__name__}, got {value!r}")
-                if key in self.setting_choices and value not in self.setting_choices[key]:
-                    raise fail(f"must be one of {', '.join(map(repr, self.setting_choices[key]))}, got {value!r}")
-                if key in self.positive_settings and not value > 0:
-                    raise fail(f"must be positive, got {value!r}")
+                if key not in self.settings_spec:
+                    raise fail(f"unknown setting (known: {', '.join(sorted(self.settings_spec))})")
+                try:
+                    value = self.settings_spec[key].parse(value)
+                except ValueError as exc:
+                    raise fail(str(exc)) from None
                 if key == self.step_setting and len(scenario.time.t) > 1:
                     interval = float(scenario.time.t[1] - scenario.time.t[0])
-                    if abs(interval / value - round(interval / value)) > 1e-9 * (interval / value):
+                    steps = interval / value
+                    if abs(steps - round(steps)) > 1e-9 * steps:
                         raise fail(f"{value!r} s does not divide the sample interval {interval:.6g} s "
                                    "(signals are read at the samples, so a whole number of steps must fit)")
-                settings[key] = float(value) if isinstance(settings[key], float) else value
+                    if steps > MAX_STEPS_PER_SAMPLE:
+                        raise fail(f"{value!r} s makes {steps:.3g} steps per sample interval ({interval:.6g} s), "
+                                   f"more than {MAX_STEPS_PER_SAMPLE:.0e}")
+                settings[key] = value
         return settings
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
@@ -117,7 +136,10 @@ class EngineAdapter(ABC):
         """Canonical signals of this engine on the scenario (docs/adapters.md)."""
         mechanism = build_mechanism(scenario)
         settings = self.settings_for(scenario, mechanism, overrides)
-        raw = self.run(mechanism, scenario.time.t, settings)
+        try:
+            raw = self.run(mechanism, scenario.time.t, settings)
+        except Unrepresentable as exc:
+            raise ScenarioError(scenario.source, exc.key, f"{self.name}: {exc.reason}") from None
         return canonical_signals(mechanism, raw.frame, self.name, self.version(),
                                  {**settings, **raw.info}, raw.missing, health(mechanism, raw.frame, raw.missing))
 

@@ -41,6 +41,7 @@ import pandas as pd
 from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Joint, Mechanism, point_motion, rotate
 
 from .base import EngineAdapter, RawRun, default_step
+from .settings import TIMESTEP, Choice, Flag, Number, Setting
 
 if TYPE_CHECKING:
     import exudyn as exu
@@ -70,9 +71,19 @@ class ExudynAdapter(EngineAdapter):
     name = "exudyn"
     library = "exudyn"
     distribution = "exudyn"
-    setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"solver": ("index2", "index3")}
-    positive_settings: ClassVar[tuple[str, ...]] = (
-        "timestep", "newton_relative_tolerance", "newton_absolute_tolerance")
+    settings_spec: ClassVar[Mapping[str, Setting]] = {
+        "solver": Choice(("index2", "index3")),
+        "timestep": TIMESTEP,
+        # At least one: t = 0 must be a solved step (see `prepare`).
+        "pre_roll_steps": Number(1, 100_000, whole=True),
+        # Index-3 needs ρ < 1 (`index3_transient_steps`).
+        "spectral_radius": Number(0.0, 1.0, high_open=True),
+        "compute_initial_accelerations": Flag(),
+        "full_newton": Flag(),
+        "newton_relative_tolerance": Number(0.0, 1.0, low_open=True),
+        "newton_absolute_tolerance": Number(0.0, low_open=True),
+        "adaptive_step": Flag(),
+    }
     #: Also report the index-3 solver. (High accuracy is a smaller step, e.g.
     #: timestep 1e-4 on fourbar-seed: every signal within 3e-7 of its peak,
     #: angles 5e-8 rad; a fixed step is no variant for every scene.)

@@ -39,6 +39,10 @@ at the sample instant):
   The cut pin's damper acts through its tendon on the tree's hinges, which
   moves its couple onto the path's bodies (same motion, other internal
   couples): it is taken out of a slide joint's M (`cut_damper_couple`).
+  Likewise a point mass turning with another body (the block on its
+  slotted lever) borrows MuJoCo's minimum inertia from that body
+  (`planar_inertias`: same motion), and the borrowed inertia's couple is
+  taken out of the slide's M (`inertia_shift_couple`).
 Only in-plane force components and the z couple are reported: the
 out-of-plane reactions of a planar loop closed in 3D are statically
 indeterminate, so any engine value there is legitimate and meaningless.
@@ -63,13 +67,16 @@ import numpy as np
 import pandas as pd
 from mujoco import rollout
 
-from mechval.engines.base import EngineAdapter, RawRun, default_step
+from mechval.engines.base import EngineAdapter, RawRun, Unrepresentable, default_step
+from mechval.engines.settings import TIMESTEP, Choice, Number, Setting
 from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism, rotate
 
-from .mujoco_model import CLOCK, Topology, coordinates, mjcf, raw_columns, sites, topology
+from .mujoco_model import (CLOCK, DRIVE, INTEGRATORS, LOOP, SOLIMP, Names, Topology, coordinates, inertia_shift,
+                           mjcf, raw_columns, topology)
 from .mujoco_snapshot import Snapshot
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+MODES = ("forward", "inverse")
 #: Data fields the read-out needs at every sample (a forward run takes time,
 #: qpos and qvel from the rollout's states).
 RECORDED = ("qacc", "xpos", "xaxis", "cvel", "cacc", "cfrc_int", "cfrc_ext", "subtree_com", "site_xpos",
@@ -80,10 +87,25 @@ class MujocoAdapter(EngineAdapter):
     name: ClassVar[str] = "mujoco"
     library: ClassVar[str] = "mujoco"
     distribution: ClassVar[str] = "mujoco"
-    setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
-        "mode": ("forward", "inverse"), "integrator": ("RK4", "Euler", "implicit", "implicitfast")}
-    positive_settings: ClassVar[tuple[str, ...]] = (
-        "timestep", "refine", "solref_steps", "drive_solref_steps", "solref_dampratio", "iterations", "clock_mass")
+    settings_spec: ClassVar[Mapping[str, Setting]] = {
+        "mode": Choice(MODES),
+        "integrator": Choice(INTEGRATORS),
+        "timestep": TIMESTEP,
+        "refine": Number(1, 1000, whole=True),
+        # In steps of dt; the pre-roll lasts preroll_timeconsts of them.
+        "solref_steps": Number(0.0, 1e4, low_open=True),
+        "drive_solref_steps": Number(0.0, 1e4, low_open=True),
+        # MuJoCo's standard solref needs dampratio > 0 (otherwise it
+        # silently falls back to its default solref).
+        "solref_dampratio": Number(0.0, 100.0, low_open=True),
+        "solimp": SOLIMP,
+        "tolerance": Number(0.0, 1.0),
+        "iterations": Number(1, 1000, whole=True),
+        # Far heavier than any mechanism (module docstring); MuJoCo refuses
+        # a moving body lighter than 1e-15 kg.
+        "clock_mass": Number(1.0, 1e20),
+        "preroll_timeconsts": Number(0.0, 1000.0),
+    }
     #: "high-accuracy": a quarter of the rule's step, solref 20 steps
     #: (≤ 1e-6 relative on fourbar-seed's forces, see the module docstring).
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
@@ -131,7 +153,7 @@ class MujocoAdapter(EngineAdapter):
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
-        if settings["mode"] not in ("forward", "inverse"):
+        if settings["mode"] not in MODES:
             raise ValueError(f"mujoco: unknown mode {settings['mode']!r} (forward, inverse)")
         start = time.perf_counter()
         model = Model(mechanism, times, settings)
@@ -190,6 +212,19 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
+def compile_model(xml: str) -> mujoco.MjModel:
+    """The compiled model, with MuJoCo's warnings silenced (the compiler
+    runs the model once and warns, e.g. of a near-singular inertia, into
+    MUJOCO_LOG.TXT in the working directory otherwise). A model MuJoCo
+    refuses is reported as Unrepresentable, not as its traceback."""
+    with warnings_silenced:
+        try:
+            return mujoco.MjModel.from_xml_string(xml)
+        except ValueError as exc:
+            reason = " ".join(str(exc).split())
+            raise Unrepresentable("engines.mujoco", f"MuJoCo cannot compile the model ({reason})") from None
+
+
 class Model:
     """A compiled MuJoCo model of the mechanism and its index maps."""
 
@@ -203,15 +238,17 @@ class Model:
         preroll = int(np.ceil(settings["preroll_timeconsts"] * settings["solref_steps"]))
         self.preroll, self.start_motion = self.start(preroll, dt)
         self.topo: Topology = topology(mech, self.start_motion)
-        self.xml = mjcf(mech, self.topo, settings, dt)
-        self.m = mujoco.MjModel.from_xml_string(self.xml)
+        self.names = names = Names.of(mech)
+        self.xml = mjcf(mech, self.topo, settings, dt, names)
+        self.m = compile_model(self.xml)
         self.d = mujoco.MjData(self.m)
         m = self.m
-        self.jid = {tj.joint.name: m.joint(tj.joint.name).id for tj in self.topo.tree}
+        self.jid = {tj.joint.name: m.joint(names.joint[tj.joint.name]).id for tj in self.topo.tree}
         self.jid[CLOCK] = m.joint(CLOCK).id
-        self.bid = {b.name: m.body(b.name).id for b in mech.bodies}
-        self.sid = {name: m.site(name).id for j in mech.joints for name in sites(j)}
-        self.loop_eq, self.drive_eq = m.equality(f"{self.topo.cut.name}__loop").id, m.equality("drive").id
+        self.bid = {b.name: m.body(names.body[b.name]).id for b in mech.bodies}
+        self.sid = {name: m.site(name).id for j in mech.joints for name in names.sites(j)}
+        self.loop_eq, self.drive_eq = m.equality(LOOP).id, m.equality(DRIVE).id
+        self.izz_shift = inertia_shift(mech)
         self.drive = self.topo.of_joint(mech.drive.joint)
 
     def start(self, preroll: int, dt: float) -> tuple[int, dict[str, np.ndarray]]:
@@ -304,7 +341,7 @@ class Model:
         motion = raw_columns(self.mech.motion(self.times))
         coords = coordinates(self.mech, self.topo, motion)
         dofs = [m.jnt_dofadr[self.jid[tj.joint.name]] for tj in self.topo.tree]
-        site_i, site_j = (self.sid[s] for s in sites(self.topo.cut))
+        site_i, site_j = (self.sid[s] for s in self.names.sites(self.topo.cut))
         jac_i, jac_j = np.zeros((3, m.nv)), np.zeros((3, m.nv))
         e_drive = np.eye(m.nv)[:, m.jnt_dofadr[self.jid[self.drive.joint.name]]]
         snapshot = Snapshot(d, RECORDED + ("qpos", "qvel"), len(self.times))
@@ -337,7 +374,8 @@ class Model:
         d = self.d
         cut = self.topo.cut
         d.xfrc_applied[:] = 0
-        for body, site, sign in ((cut.body_j, sites(cut)[1], 1.0), (cut.body_i, sites(cut)[0], -1.0)):
+        site_i, site_j = self.names.sites(cut)
+        for body, site, sign in ((cut.body_j, site_j, 1.0), (cut.body_i, site_i, -1.0)):
             if body == GROUND:
                 continue
             bid = self.bid[body]
@@ -410,9 +448,10 @@ class Model:
                 # The damper's force acts along the axis through body_j's joint
                 # point: it has no moment about that point, so the couple is
                 # the whole moment there, and the reaction force is the rest.
-                p_j = S["site_xpos"][:, self.sid[sites(tj.joint)[1]]]
+                p_j = S["site_xpos"][:, self.sid[self.names.sites(tj.joint)[1]]]
                 moment = torque + cross(S["subtree_com"][:, m.body_rootid[bid]] - p_j, force)
-                col[f"{name}.M"] = tj.sign * (moment[:, 2] - self.cut_damper_couple(tj.child, col))
+                col[f"{name}.M"] = tj.sign * (moment[:, 2] - self.cut_damper_couple(tj.child, col)
+                                              - self.inertia_shift_couple(tj.child, col))
                 force = force - S["qfrc_passive"][:, m.jnt_dofadr[jid], None] * S["xaxis"][:, jid]
             col[f"{name}.Fx"], col[f"{name}.Fy"] = tj.sign * force[:, 0], tj.sign * force[:, 1]
         cut = self.topo.cut.name
@@ -447,12 +486,22 @@ class Model:
         couple_on_j = -cut.damping * (omega(cut.body_j) - omega(cut.body_i))
         return couple_on_j if cut.body_j in below else -couple_on_j
 
+    def inertia_shift_couple(self, child: str, col: Mapping[str, np.ndarray]) -> np.ndarray | float:
+        """The couple the izz lent inside a turning group (`planar_inertias`)
+        needs on the subtree of `child`: Σ Δizz·α over its bodies. A slide
+        joint is the only place where such a group is split, so this is
+        what the slide's couple carries besides the scene's physics."""
+        couple: np.ndarray | float = 0.0
+        for body in self.topo.subtree(child) & set(self.izz_shift):
+            couple = couple + self.izz_shift[body] * col[f"{body}.alpha"]
+        return couple
+
     def gaps(self, site_xpos: np.ndarray, col: Mapping[str, np.ndarray]) -> np.ndarray:
         """Per sample, the largest distance between the two sides of any
         joint (m); for a prismatic joint the offset across its axis."""
         worst = np.zeros(len(site_xpos))
         for j in self.mech.joints:
-            p_i, p_j = (site_xpos[:, self.sid[s], :2] for s in sites(j))
+            p_i, p_j = (site_xpos[:, self.sid[s], :2] for s in self.names.sites(j))
             r = p_j - p_i
             if j.kind == "prismatic":
                 theta_i = np.zeros(len(r)) if j.body_i == GROUND else col[f"{j.body_i}.theta"]

@@ -38,7 +38,24 @@ import pandas as pd
 
 from mechval.mechanism import GROUND, Joint, Mechanism, point_motion, rotate
 
+from .base import Unrepresentable
+from .settings import Number, Numbers
+
 CLOCK = "mechval_clock"
+#: The equalities: the loop closure at the cut pin, the drive.
+LOOP, DRIVE = "loop", "drive"
+#: Integrators (setting "integrator"), by their MJCF names.
+INTEGRATORS = ("RK4", "Euler", "implicit", "implicitfast")
+#: The soft constraints' impedance (setting "solimp"), within the range
+#: MuJoCo uses (it silently clamps dmin, dmax and midpoint to [1e-4, 0.9999],
+#: width to ≥ 0 and power to ≥ 1: a value outside would be recorded but
+#: not simulated).
+SOLIMP = Numbers((("dmin", Number(1e-4, 0.9999)), ("dmax", Number(1e-4, 0.9999)), ("width", Number(0.0)),
+                  ("midpoint", Number(1e-4, 0.9999)), ("power", Number(1.0))))
+#: MuJoCo refuses a moving body whose mass or smallest principal inertia is
+#: below mjMINVAL = 1e-15 (kg, kg·m²). Bodies get ixx = iyy = izz/2, so a
+#: turning body needs izz ≥ 2e-15; MIN_IZZ keeps a margin.
+MIN_MASS, MIN_IZZ = 1e-15, 1e-14
 
 
 @dataclass(frozen=True)
@@ -151,9 +168,24 @@ def _vec(*values: float) -> str:
     return " ".join(f"{float(v):.17g}" for v in values)
 
 
-def sites(joint: Joint) -> tuple[str, str]:
-    """Names of the joint's sites on body_i and on body_j."""
-    return f"{joint.name}__i", f"{joint.name}__j"
+@dataclass(frozen=True)
+class Names:
+    """MuJoCo element names: generated identifiers, so that no user string
+    reaches the MJCF (a quote, `<` or NUL in a name can neither change nor
+    break the model). Body k of the mechanism is "b{k}", joint k is "j{k}"
+    and its sites "j{k}i" (on body_i) and "j{k}j" (on body_j)."""
+
+    body: Mapping[str, str]
+    joint: Mapping[str, str]
+
+    @classmethod
+    def of(cls, mech: Mechanism) -> "Names":
+        return cls({b.name: f"b{k}" for k, b in enumerate(mech.bodies)},
+                   {j.name: f"j{k}" for k, j in enumerate(mech.joints)})
+
+    def sites(self, joint: Joint) -> tuple[str, str]:
+        """The joint's sites on body_i and on body_j."""
+        return f"{self.joint[joint.name]}i", f"{self.joint[joint.name]}j"
 
 
 def damper_coefficients(topo: Topology, joint: Joint) -> dict[str, float]:
@@ -169,63 +201,122 @@ def damper_coefficients(topo: Topology, joint: Joint) -> dict[str, float]:
     return {name: c for name, c in coef.items() if c != 0.0}
 
 
-def planar_izz(topo: Topology, body: str, izz: float, mass: float) -> float:
-    """The izz MuJoCo gets. MuJoCo refuses a zero inertia on a moving body;
-    a point mass (izz = 0) that only slides never rotates, so any izz is
-    exact for it and its mass·(1 m)² stands in. A rotating point mass has no
-    exact MuJoCo equivalent and is refused rather than approximated."""
-    if izz > 0.0:
-        return izz
-    if any(tj.joint.kind == "revolute" for tj in topo.path(body)):
-        raise ValueError(f"MuJoCo needs izz > 0 for the rotating body {body!r}")
-    return mass                                  # mass·(1 m)²
+def turning_groups(mech: Mechanism) -> list[set[str]]:
+    """Bodies that turn together: those joined by prismatic joints (a
+    slide keeps their relative rotation), e.g. the slotted lever's block and
+    lever. The group holding the ground does not turn."""
+    group = {name: {name} for name in [GROUND] + [b.name for b in mech.bodies]}
+    for j in mech.joints:
+        if j.kind == "prismatic" and group[j.body_i] is not group[j.body_j]:
+            merged = group[j.body_i] | group[j.body_j]
+            for name in merged:
+                group[name] = merged
+    return list({id(g): g for g in group.values()}.values())
 
 
-def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], dt: float) -> str:
+def planar_inertias(mech: Mechanism) -> dict[str, float]:
+    """The izz each body gets in MuJoCo (kg·m²), which refuses a moving
+    body whose principal inertia is below mjMINVAL (`MIN_IZZ`).
+
+    - A body that never turns (slides on the ground): any izz is exact for
+      it; a point mass (izz = 0) gets its mass·(1 m)².
+    - A turning body below MIN_IZZ, e.g. a point-mass block (izz = 0) that
+      turns with its slotted lever: it gets MIN_IZZ, taken from the body of
+      its group with the largest izz. The motion depends only on the
+      group's total izz (its bodies turn as one), which is kept, so every
+      signal is exact except the couple M of a slide inside the group,
+      which carries the shifted inertia times α; the read-out takes it
+      out (`Model.inertia_shift_couple`).
+    Raises Unrepresentable when a body cannot be represented (no body of
+    its group has the inertia to lend, or a mass below mjMINVAL)."""
+    izz = {b.name: b.izz for b in mech.bodies}
+    for body in mech.bodies:
+        if body.mass < MIN_MASS:
+            raise Unrepresentable(f"mass.{body.name}", f"MuJoCo refuses a moving body lighter than "
+                                                       f"{MIN_MASS:g} kg, got {body.mass!r}")
+    for group in turning_groups(mech):
+        if GROUND in group:
+            for name in group - {GROUND}:
+                izz[name] = izz[name] if izz[name] > 0.0 else mech.body(name).mass   # mass·(1 m)²
+            continue
+        small = sorted(name for name in group if izz[name] < MIN_IZZ)
+        if not small:
+            continue
+        lender = max(group, key=lambda name: izz[name])
+        lent = sum(MIN_IZZ - izz[name] for name in small)
+        if lender in small or izz[lender] - lent < MIN_IZZ:
+            others = ", ".join(sorted(group - {small[0]}))
+            raise Unrepresentable(f"mass.{small[0]}", f"MuJoCo needs izz ≥ {MIN_IZZ:g} kg·m² on every turning "
+                                                      f"body, got {izz[small[0]]!r}, and the bodies turning with it "
+                                                      f"({others or 'none'}) have too little to lend")
+        for name in small:
+            izz[name] = MIN_IZZ
+        izz[lender] -= lent
+    return izz
+
+
+def inertia_shift(mech: Mechanism) -> dict[str, float]:
+    """Per turning body whose izz MuJoCo gets differs from the scene's
+    (`planar_inertias`), the difference (kg·m²)."""
+    inertias = planar_inertias(mech)
+    turning = set().union(*(g for g in turning_groups(mech) if GROUND not in g))
+    return {b.name: inertias[b.name] - b.izz for b in mech.bodies
+            if b.name in turning and inertias[b.name] != b.izz}
+
+
+def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], dt: float, names: Names) -> str:
     """The MJCF text of the mechanism with the given adapter settings and
-    the step `dt` MuJoCo takes (s)."""
+    the step `dt` MuJoCo takes (s). Only generated names (`names`) and
+    numbers formatted from floats (`_vec`, %.17g round-trips) reach it,
+    never a string from the scene or the settings."""
     gx, gy = mech.gravity
     site_xml: dict[str, list[str]] = {}
     for j in mech.joints:
-        for body, point, name in zip((j.body_i, j.body_j), (j.point_i, j.point_j), sites(j)):
+        for body, point, name in zip((j.body_i, j.body_j), (j.point_i, j.point_j), names.sites(j)):
             site_xml.setdefault(body, []).append(f'<site name="{name}" pos="{_vec(*point, 0)}"/>')
+    inertias = planar_inertias(mech)
 
     def body_xml(tj: TreeJoint) -> str:
         b = mech.body(tj.child)
         px, py = tj.point_parent
         cx, cy = rotate(np.asarray(tj.rel0), tj.point_child)
+        joint_name = names.joint[tj.joint.name]
         if tj.joint.kind == "revolute":
-            joint = f'<joint name="{tj.joint.name}" type="hinge" pos="{_vec(*tj.point_child, 0)}" axis="0 0 1"/>'
+            joint = f'<joint name="{joint_name}" type="hinge" pos="{_vec(*tj.point_child, 0)}" axis="0 0 1"/>'
         else:
             # The axis is given in body_i's frame; MuJoCo wants it in the child's.
             ax, ay = rotate(np.asarray(-tj.rel0 if tj.sign > 0 else 0.0), tj.joint.axis)
-            joint = (f'<joint name="{tj.joint.name}" type="slide" pos="{_vec(*tj.point_child, 0)}" '
+            joint = (f'<joint name="{joint_name}" type="slide" pos="{_vec(*tj.point_child, 0)}" '
                      f'axis="{_vec(ax, ay, 0)}"/>')
-        izz = planar_izz(topo, b.name, b.izz, b.mass)
+        izz = inertias[b.name]
         # Only izz acts in the plane; ixx = iyy = izz/2 keeps the tensor valid.
-        inertial = (f'<inertial pos="{_vec(*b.com, 0)}" mass="{b.mass:.17g}" '
+        inertial = (f'<inertial pos="{_vec(*b.com, 0)}" mass="{_vec(b.mass)}" '
                     f'diaginertia="{_vec(izz / 2, izz / 2, izz)}"/>')
         children = "".join(body_xml(c) for c in topo.tree if c.parent == tj.child)
-        return (f'<body name="{b.name}" pos="{_vec(px - float(cx), py - float(cy), 0)}" quat="{_quat_z(tj.rel0)}">'
-                f'{joint}{inertial}{"".join(site_xml.get(b.name, []))}{children}</body>')
+        return (f'<body name="{names.body[b.name]}" pos="{_vec(px - float(cx), py - float(cy), 0)}" '
+                f'quat="{_quat_z(tj.rel0)}">{joint}{inertial}{"".join(site_xml.get(b.name, []))}{children}</body>')
 
-    solref = f'{settings["solref_steps"] * dt:.17g} {settings["solref_dampratio"]:.17g}'
-    drive_solref = f'{settings["drive_solref_steps"] * dt:.17g} {settings["solref_dampratio"]:.17g}'
-    solimp = settings["solimp"]
+    solref = _vec(settings["solref_steps"] * dt, settings["solref_dampratio"])
+    drive_solref = _vec(settings["drive_solref_steps"] * dt, settings["solref_dampratio"])
+    solimp = _vec(*SOLIMP.values(settings["solimp"]))
+    integrator = settings["integrator"]
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"mujoco: integrator must be one of {INTEGRATORS}, got {integrator!r}")
     drive = topo.of_joint(mech.drive.joint)
     law = mech.drive.law
-    clock_mass = settings["clock_mass"]
-    i_site, j_site = sites(topo.cut)
+    clock_mass = float(settings["clock_mass"])
+    i_site, j_site = names.sites(topo.cut)
     tendons = []
     for j in mech.damped_joints:
-        coef = "".join(f'<joint joint="{n}" coef="{c:.17g}"/>' for n, c in damper_coefficients(topo, j).items())
-        tendons.append(f'<fixed name="{j.name}__damper" damping="{j.damping:.17g}">{coef}</fixed>')
+        coef = "".join(f'<joint joint="{names.joint[n]}" coef="{_vec(c)}"/>'
+                       for n, c in damper_coefficients(topo, j).items())
+        tendons.append(f'<fixed damping="{_vec(j.damping)}">{coef}</fixed>')
     roots = "".join(body_xml(tj) for tj in topo.tree if tj.parent == GROUND)
-    return f"""<mujoco model="{mech.name}">
+    return f"""<mujoco model="mechval">
   <compiler angle="radian" inertiafromgeom="false" autolimits="true" boundmass="0" boundinertia="0"/>
-  <option timestep="{dt:.17g}" integrator="{settings['integrator']}"
+  <option timestep="{_vec(dt)}" integrator="{integrator}"
           gravity="{_vec(gx, gy, 0)}" density="0" viscosity="0" wind="0 0 0"
-          solver="Newton" tolerance="{settings['tolerance']:.17g}" iterations="{settings['iterations']}"
+          solver="Newton" tolerance="{_vec(settings['tolerance'])}" iterations="{int(settings['iterations'])}"
           noslip_iterations="0">
     <flag contact="disable" autoreset="disable" refsafe="disable" gravity="{'enable' if mech.has_gravity else 'disable'}"/>
   </option>
@@ -237,18 +328,18 @@ def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], dt: float
     {roots}
     <body name="{CLOCK}">
       <joint name="{CLOCK}" type="slide" axis="0 0 1"/>
-      <inertial pos="0 0 0" mass="{clock_mass:.17g}" diaginertia="1 1 1"/>
+      <inertial pos="0 0 0" mass="{_vec(clock_mass)}" diaginertia="1 1 1"/>
     </body>
   </worldbody>
   <equality>
-    <connect name="{topo.cut.name}__loop" site1="{j_site}" site2="{i_site}" solref="{solref}" solimp="{solimp}"/>
-    <joint name="drive" joint1="{drive.joint.name}" joint2="{CLOCK}" polycoef="0 {drive.sign:.17g} 0 0 0"
-           solref="{drive_solref}" solimp="{solimp}"/>
+    <connect name="{LOOP}" site1="{j_site}" site2="{i_site}" solref="{solref}" solimp="{solimp}"/>
+    <joint name="{DRIVE}" joint1="{names.joint[drive.joint.name]}" joint2="{CLOCK}"
+           polycoef="0 {_vec(drive.sign)} 0 0 0" solref="{drive_solref}" solimp="{solimp}"/>
   </equality>
   <tendon>{"".join(tendons)}</tendon>
   <actuator>
     <general name="{CLOCK}" joint="{CLOCK}" gainprm="0" biastype="affine"
-             biasprm="{clock_mass * law.alpha:.17g} 0 0" ctrllimited="false" forcelimited="false"/>
+             biasprm="{_vec(clock_mass * law.alpha)} 0 0" ctrllimited="false" forcelimited="false"/>
   </actuator>
 </mujoco>"""
 

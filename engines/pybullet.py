@@ -51,6 +51,7 @@ from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism
 from .base import EngineAdapter, RawRun, default_step
 from .pybullet_model import NO_CAP, Model, build, p   # p: pybullet, imported quietly there
 from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_slides, slide_reaction
+from .settings import TIMESTEP, Choice, Number, Setting
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
 #: base.default_step). PyBullet's rocker sensor converges only as O(dt)
@@ -70,7 +71,8 @@ class PybulletAdapter(EngineAdapter):
     name = "pybullet"
     library = "pybullet"
     distribution = "pybullet"
-    setting_choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"layout": ("split", "tree")}
+    settings_spec: ClassVar[Mapping[str, Setting]] = {
+        "timestep": TIMESTEP, "preroll_steps": Number(0, 100_000, whole=True), "layout": Choice(("split", "tree"))}
     #: `mechval cost` has one line here: the solver is not a setting (Dantzig
     #: LCP, exact; the iterative ones stop early, docs/engines.md).
     cost_variants = {"Dantzig": {}}

@@ -92,11 +92,11 @@ def test_model_has_only_the_scenes_effects(engine, name):
     np.testing.assert_array_equal(m.actuator_biasprm[0, :3], [settings["clock_mass"] * mech.drive.law.alpha, 0, 0])
     # Mass properties as given (izz; the in-plane axes do not act).
     for body in mech.bodies:
-        b = m.body(body.name)
+        b = m.body(model.names.body[body.name])
         assert b.mass[0] == body.mass and b.inertia[2] == (body.izz or body.mass)
         np.testing.assert_array_equal(b.ipos[:2], body.com)
     # Soft constraints as recorded.
-    loop, drive = m.eq(f"{model.topo.cut.name}__loop"), m.eq("drive")
+    loop, drive = m.eq(model.loop_eq), m.eq(model.drive_eq)
     np.testing.assert_allclose(loop.solref, [settings["solref_steps"] * dt, settings["solref_dampratio"]], rtol=1e-15)
     np.testing.assert_allclose(drive.solref, [settings["drive_solref_steps"] * dt, settings["solref_dampratio"]],
                                rtol=1e-15)
@@ -310,6 +310,119 @@ def test_a_single_instant_without_pre_roll(engine):
     raw = engine.run(mech, scenario.time.t[:1], settings)
     assert raw.info["steps"] == 0 and len(raw.frame) == 1
     assert np.all(np.isfinite(raw.frame.to_numpy()))
+
+
+# -- what reaches MuJoCo's compiler ----------------------------------------------
+
+def test_build_warnings_not_logged_to_the_working_directory(engine, tmp_path, monkeypatch):
+    """A rocker whose centre of mass is 1e49 m out makes MuJoCo warn while
+    compiling (near-singular inertia); the warning must not land in
+    ./MUJOCO_LOG.TXT (or stdout)."""
+    import dataclasses
+    monkeypatch.chdir(tmp_path)
+    scenario = builtin_scenario("fourbar-seed")
+    mech = build_mechanism(scenario)
+    far = tuple(dataclasses.replace(b, com=(1e49, 0.0)) if b.name == "rocker" else b for b in mech.bodies)
+    Model(dataclasses.replace(mech, bodies=far), scenario.time.t, engine.settings_for(scenario, mech))
+    assert not list(tmp_path.iterdir())
+    assert mujoco.get_mju_user_warning() is None                      # MuJoCo's default restored
+
+
+def renamed(mech: Mechanism, new) -> Mechanism:
+    """`mech` with every body, joint and the mechanism itself renamed by
+    `new(old_name)` (the motion's columns likewise)."""
+    import dataclasses
+    body = lambda name: name if name == GROUND else new(name)
+    bodies = tuple(dataclasses.replace(b, name=body(b.name)) for b in mech.bodies)
+    joints = tuple(dataclasses.replace(j, name=new(j.name), body_i=body(j.body_i), body_j=body(j.body_j))
+                   for j in mech.joints)
+    column = lambda c: c if c == "t" else ".".join([body(c.split(".")[0]), c.split(".")[1]])
+    return dataclasses.replace(mech, name=new(mech.name), bodies=bodies, joints=joints,
+                               drive=dataclasses.replace(mech.drive, joint=new(mech.drive.joint)),
+                               motion=lambda t: mech.motion(t).rename(columns=column))
+
+
+@pytest.mark.parametrize("name", ["fourbar-damped", "shaper-quick-return"])
+def test_names_never_reach_the_model(engine, name):
+    """Names with a quote, markup, a NUL or a newline (the scenario's, the
+    bodies', the joints') change nothing, bit for bit: MuJoCo's elements
+    carry generated names, and none of the names is in the MJCF."""
+    hostile = lambda old: f'{old}" active="false <x/> &amp; \x00 \n'
+    scenario = builtin_scenario(name)
+    mech = build_mechanism(scenario)
+    times = scenario.time.t[:41]
+    settings = engine.settings_for(scenario, mech)
+    plain = engine.run(mech, times, settings).frame
+    odd_mech = renamed(mech, hostile)
+    odd = engine.run(odd_mech, times, settings).frame
+    back = {hostile(b): b for b in [x.name for x in mech.bodies] + [j.name for j in mech.joints]}
+    odd.columns = [".".join([back.get(c.split(".")[0], c.split(".")[0]), *c.split(".")[1:]]) for c in odd.columns]
+    pd.testing.assert_frame_equal(odd, plain, check_exact=True)
+    xml = Model(odd_mech, times, settings).xml
+    assert '"' + " active" not in xml and "\x00" not in xml and "<x/>" not in xml
+
+
+def scene_with_block(block, scale: float = 1.0):
+    """shaper-quick-return for one crank turn with the given block mass
+    entry, every length and mass times `scale`."""
+    return parse({"name": "block", "mechanism": "slotted_lever",
+                  "geometry": {"ground": 0.30 * scale, "crank": 0.10 * scale, "lever": 0.50 * scale},
+                  "mass": {"crank": 2.0 * scale, "block": block, "lever": 4.0 * scale},
+                  "drive": {"phi0": 0.0, "omega0": 6.0, "alpha": 0.0}, "effects": {"gravity": [9.81, 0.0]},
+                  "time": {"end": 1.2, "samples": 241}}, "block.toml")
+
+
+def test_point_mass_turning_with_its_lever_borrows_inertia(engine):
+    """The point-mass block (izz = 0) gets MIN_IZZ, taken from the lever it
+    turns with (their total, which the motion depends on, is kept); a
+    slider that never turns keeps its stand-in mass·(1 m)²."""
+    from mechval.engines.mujoco_model import MIN_IZZ, inertia_shift, planar_inertias
+    mech = build_mechanism(scene_with_block(0.5))
+    izz = planar_inertias(mech)
+    lever = mech.body("lever").izz
+    assert izz["block"] == MIN_IZZ and izz["lever"] == lever - MIN_IZZ and izz["crank"] == mech.body("crank").izz
+    assert izz["block"] + izz["lever"] == pytest.approx(lever, rel=1e-15)
+    # The shift is what MuJoCo holds minus the scene's izz, rounding of the
+    # lever's subtraction included (ulp(lever izz) ≈ 1e-17).
+    assert inertia_shift(mech) == {"block": MIN_IZZ, "lever": pytest.approx(-MIN_IZZ, abs=1e-16)}
+    slider = build_mechanism(builtin_scenario("slider-crank"))
+    assert planar_inertias(slider)["slider"] == slider.body("slider").mass and not inertia_shift(slider)
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3])
+def test_point_mass_block_inverse_mode_reproduces_the_reference(engine, scale):
+    """Inverse dynamics of the point-mass block matches the reference to
+    rounding, the slide's couple M43 included: the inertia the block
+    borrows from the lever is taken out of it again. (Left in, it is
+    MIN_IZZ·α4: 1e-7 of the torques on a millimetre-and-gram lever.)"""
+    scenario = scene_with_block(0.5 * scale, scale)
+    result = engine.simulate(scenario, {"mode": "inverse"})
+    records = compare(simulate_reference(scenario), result, scenario.tolerance, setting="inverse")
+    assert worst_relative(records) <= INVERSE_AGREEMENT, "\n" + format_records(records)
+
+
+def test_masses_mujoco_cannot_hold_are_refused_with_the_key(engine, monkeypatch):
+    """A mass below MuJoCo's floor (1e-15 kg), or a turning point mass with
+    no body to borrow inertia from, is refused naming the scene's key (the
+    compiler's error was a traceback)."""
+    import dataclasses
+
+    from mechval.engines import base
+    from mechval.engines.base import Unrepresentable
+    from mechval.scenario import ScenarioError
+    scenario = builtin_scenario("slider-crank")
+    mech = build_mechanism(scenario)
+    light = dataclasses.replace(mech, bodies=tuple(dataclasses.replace(b, mass=1e-300) if b.name == "crank" else b
+                                                   for b in mech.bodies))
+    monkeypatch.setattr(base, "build_mechanism", lambda s: light)
+    with pytest.raises(ScenarioError, match="mass.crank: mujoco: MuJoCo refuses a moving body lighter") as refused:
+        engine.simulate(scenario)
+    assert refused.value.source == str(scenario.source)
+    block = build_mechanism(scene_with_block(0.5))
+    bare = dataclasses.replace(block, bodies=tuple(dataclasses.replace(b, izz=0.0) if b.name == "lever" else b
+                                                   for b in block.bodies))
+    with pytest.raises(Unrepresentable, match=r"mass.block: MuJoCo needs izz .* turning with it \(lever\)"):
+        engine.run(bare, scenario.time.t, engine.default_settings(bare, scenario.time.t))
 
 
 class TestContract(AdapterContract):

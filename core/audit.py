@@ -1,5 +1,5 @@
 """The compiled-model audit: what an engine will simulate, read back from
-its built model and set against the `Mechanism` (DESIGN.md: "only the
+its built model and set against the `Mechanism` (docs/adapters.md: "only the
 effects the scene lists are simulated", as a table).
 
 `expected_model(mechanism)` lists, from the Mechanism alone, what every

@@ -313,5 +313,5 @@ def notes(settings: Mapping[str, Any], simulation) -> list[Reading]:
                 "Numerical.", "note"),
         Reading(ENGINE, "initial accelerations",
                 "computed by Exudyn" if ti.generalizedAlpha.computeInitialAccelerations else "the reference's",
-                "Exudyn's own solve ignores φ'' of the drive (ENGINE_NOTES).", "note"),
+                "Exudyn's own solve ignores φ'' of the drive (docs/engines.md).", "note"),
     ]

@@ -43,7 +43,7 @@ from .pybullet import Stepper, step_plan
 from .pybullet_model import BodyHandle, Model, build, p
 
 ENGINE = "pybullet"
-#: PyBullet's defaults for what has no getter (ENGINE_NOTES, PyBullet 3.2.7).
+#: PyBullet's defaults for what has no getter (docs/engines.md, PyBullet 3.2.7).
 DEFAULT_BODY_DAMPING = 0.04
 DEFAULT_SPEED_CLAMP = 100.0
 RECORDED_CALLS = ("changeDynamics", "setJointMotorControl2", "setPhysicsEngineParameter")

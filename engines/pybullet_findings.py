@@ -5,7 +5,7 @@ adapter's solver settings (`pybullet_model.configure_solver`: exact Dantzig
 LCP, joint feedback in world axes), takes a few steps and compares a joint
 sensor's read-out after the last step with the exact value for the state
 that step started from (the state the engine computed its forces at; the
-forces read after a step belong to its start, ENGINE_NOTES), from the
+forces read after a step belong to its start, docs/engines.md), from the
 model's Lagrange equations in closed form. Exact for the engine's own
 state, the comparison does not depend on integration error: a correct
 sensor agrees to round-off (the tests show it on the same models with the

@@ -19,7 +19,7 @@ P_k and the couples M_k→j (another slide's couple, the drive torque) exactly
 as PyBullet reports them (constraint forces and leaf sensors); F_ext and
 M_ext(P) are the damper loads the adapter applied in the step.
 
-Time stamps (ENGINE_NOTES): the forces read after the step from t_n to
+Time stamps (docs/engines.md): the forces read after the step from t_n to
 t_n+1 belong to t_n, and so does this balance. PyBullet's semi-implicit
 Euler moves the joint coordinates by dt·q̇ with the step's new velocity, so
 the second central difference of the centre-of-mass positions,

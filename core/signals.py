@@ -19,6 +19,7 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
+from .adapter import RunInfo
 from .mechanism import GROUND, Mechanism, point_motion, rotate
 
 COMMON_SIGNALS = (
@@ -61,8 +62,10 @@ class Signals:
     version: str = ""
     settings: Mapping[str, Any] = field(default_factory=dict)
     missing: Mapping[str, str] = field(default_factory=dict)
-    #: Per-sample run health (mechval.health.HEALTH_COLUMNS); engines only.
+    #: Per-sample run health (mechval.health.HEALTH_COLUMNS).
     health: pd.DataFrame | None = None
+    #: What the run did (build and wall time, steps, warnings, facts).
+    info: RunInfo = field(default_factory=RunInfo)
 
     @property
     def t(self) -> np.ndarray:
@@ -98,6 +101,7 @@ def canonical_signals(
     settings: Mapping[str, Any] | None = None,
     missing: Mapping[str, str] | None = None,
     health: pd.DataFrame | None = None,
+    info: RunInfo | None = None,
 ) -> Signals:
     """Map raw columns ("crank.theta", "A.Fx", ...) to canonical signals.
 
@@ -116,7 +120,7 @@ def canonical_signals(
             reasons[name] = missing[raw_name]
         elif raw_name not in raw:
             reasons[name] = f"{source} does not report {raw_name}"
-    return Signals(pd.DataFrame(columns), source, version, dict(settings or {}), reasons, health)
+    return Signals(pd.DataFrame(columns), source, version, dict(settings or {}), reasons, health, info or RunInfo())
 
 
 def with_slide_columns(mechanism: Mechanism, raw: pd.DataFrame,

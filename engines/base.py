@@ -1,147 +1,21 @@
-"""What every engine adapter shares: settings, step rule, provenance.
-
-An adapter turns a `Mechanism` into an engine model, drives the crank with
-φ(t), and returns raw motion and reaction columns (see `mechval.mechanism`)
-at the requested instants, already in the Fij convention. Mapping to the
-canonical signals and comparing happen elsewhere.
+"""What the engine adapters share beyond the contract (`mechval.adapter`,
+re-exported here for adapters and plug-ins): the step rule and silencing
+what engines print from C.
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
-import importlib
-import importlib.metadata
 import os
 import sys
-from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
-from typing import Any, ClassVar, Mapping
 
 import numpy as np
-import pandas as pd
 
-from mechval.health import health
-from mechval.linkages import build_mechanism
+from mechval.adapter import (MAX_STEPS_PER_SAMPLE, EngineAdapter, RawRun, RunInfo,  # noqa: F401 (re-exported)
+                             Unrepresentable)
 from mechval.kinematics import step_rate
 from mechval.mechanism import Mechanism
-from mechval.scenario import Scenario, ScenarioError
-from mechval.signals import Signals, canonical_signals
-
-from .settings import TIMESTEP, Setting
-
-#: The finest step a setting may ask for, as steps per sample interval:
-#: beyond it a run cannot finish (nor its states fit in memory).
-MAX_STEPS_PER_SAMPLE = 10**6
-
-
-@dataclass(frozen=True)
-class RawRun:
-    """An engine's output: raw columns at the requested instants, the reason
-    for every column with missing values, and engine facts worth keeping
-    (e.g. the measured loop-closure gap)."""
-
-    frame: pd.DataFrame
-    missing: Mapping[str, str] = field(default_factory=dict)
-    info: Mapping[str, Any] = field(default_factory=dict)
-
-
-class Unrepresentable(ValueError):
-    """The engine cannot represent this (valid) scene, e.g. a mass below
-    what its compiler accepts. `key` names the scenario key at fault;
-    `simulate` reports it as a ScenarioError with the scenario's file."""
-
-    def __init__(self, key: str, reason: str):
-        self.key, self.reason = key, reason
-        super().__init__(f"{key}: {reason}")
-
-    def __reduce__(self):
-        return type(self), (self.key, self.reason)
-
-
-class EngineAdapter(ABC):
-    name: ClassVar[str]
-    #: The import name of the engine library, and its distribution on PyPI.
-    library: ClassVar[str]
-    distribution: ClassVar[str]
-    #: What each setting accepts (type, range or choices; see `settings`).
-    #: Its keys are exactly those of `default_settings`.
-    settings_spec: ClassVar[Mapping[str, Setting]] = {"timestep": TIMESTEP}
-    #: Settings reported by `mechval run`: name → overrides of the defaults.
-    variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
-    #: Work-precision sweeps (`mechval cost`): the setting that is the time
-    #: step; the ladder of steps as rotations per step at the run's peak
-    #: rate Ω (`step_rate`; 0.1 … 0.001 rad spans two decades of step and
-    #: scales with the scene); the variants crossed with it (name →
-    #: overrides; the one with no overrides is the default).
-    step_setting: ClassVar[str] = "timestep"
-    cost_ladder: ClassVar[tuple[float, ...]] = (0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
-    cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
-
-    @classmethod
-    def unavailable_reason(cls) -> str:
-        try:
-            importlib.import_module(cls.library)
-        except ImportError as exc:   # not installed, or a broken installation
-            return f"{cls.library} cannot be imported ({type(exc).__name__}: {exc})"
-        return ""
-
-    @classmethod
-    def version(cls) -> str:
-        return importlib.metadata.version(cls.distribution)
-
-    @abstractmethod
-    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
-        """Settings derived from the scenario so default tolerances are met."""
-
-    @abstractmethod
-    def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
-        """Simulate and return raw columns at `times` (see module docstring)."""
-
-    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
-                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        """Derived defaults, then the scenario's [engines.NAME] table, then
-        explicit overrides. An unknown key, a value `settings_spec` refuses
-        (type, range, choices), or a step that does not divide the sample
-        interval is refused with the file and key, before any run."""
-        settings = self.default_settings(mechanism, scenario.time.t)
-        for origin, table in (("file", scenario.settings_for(self.name)), ("override", overrides or {})):
-            source = scenario.source if origin == "file" else "settings override"
-            for key, value in table.items():
-                fail = lambda reason: ScenarioError(source, f"engines.{self.name}.{key}", reason)
-                if key not in self.settings_spec:
-                    raise fail(f"unknown setting (known: {', '.join(sorted(self.settings_spec))})")
-                try:
-                    value = self.settings_spec[key].parse(value)
-                except ValueError as exc:
-                    raise fail(str(exc)) from None
-                if key == self.step_setting and len(scenario.time.t) > 1:
-                    interval = float(scenario.time.t[1] - scenario.time.t[0])
-                    steps = interval / value
-                    if abs(steps - round(steps)) > 1e-9 * steps:
-                        raise fail(f"{value!r} s does not divide the sample interval {interval:.6g} s "
-                                   "(signals are read at the samples, so a whole number of steps must fit)")
-                    if steps > MAX_STEPS_PER_SAMPLE:
-                        raise fail(f"{value!r} s makes {steps:.3g} steps per sample interval ({interval:.6g} s), "
-                                   f"more than {MAX_STEPS_PER_SAMPLE:.0e}")
-                settings[key] = value
-        return settings
-
-    def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
-        """What the engine model `run` builds holds, read back and set
-        against the Mechanism (`mechval.audit`); adapters override this."""
-        raise NotImplementedError(f"{self.name}: no model audit")
-
-    def simulate(self, scenario: Scenario, overrides: Mapping[str, Any] | None = None) -> Signals:
-        """Canonical signals of this engine on the scenario (docs/adapters.md)."""
-        mechanism = build_mechanism(scenario)
-        settings = self.settings_for(scenario, mechanism, overrides)
-        try:
-            raw = self.run(mechanism, scenario.time.t, settings)
-        except Unrepresentable as exc:
-            raise ScenarioError(scenario.source, exc.key, f"{self.name}: {exc.reason}") from None
-        return canonical_signals(mechanism, raw.frame, self.name, self.version(),
-                                 {**settings, **raw.info}, raw.missing, health(mechanism, raw.frame, raw.missing))
 
 
 @contextlib.contextmanager

@@ -40,8 +40,8 @@ import pandas as pd
 
 from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Joint, Mechanism, point_motion, rotate
 
-from .base import EngineAdapter, RawRun, default_step
-from .settings import TIMESTEP, Choice, Flag, Number, Setting
+from .base import EngineAdapter, RawRun, RunInfo, default_step
+from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
 if TYPE_CHECKING:
     import exudyn as exu
@@ -146,7 +146,7 @@ class ExudynAdapter(EngineAdapter):
             "closure_gap_max": float(gap.max()), "drive_error_max": float(drive_error.max()),
             "build_time_s": build_time, "wall_time_s": wall_time,
         }
-        return RawRun(frame, missing, info)
+        return RawRun(frame, missing, RunInfo.of(info))
 
 
 def prepare(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]

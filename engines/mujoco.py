@@ -67,8 +67,8 @@ import numpy as np
 import pandas as pd
 from mujoco import rollout
 
-from mechval.engines.base import EngineAdapter, RawRun, Unrepresentable, default_step
-from mechval.engines.settings import TIMESTEP, Choice, Number, Setting
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step
+from mechval.settings import TIMESTEP, Choice, Number, Setting
 from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism, rotate
 
 from .mujoco_model import (CLOCK, DRIVE, INTEGRATORS, LOOP, SOLIMP, Names, Topology, coordinates, inertia_shift,
@@ -164,7 +164,7 @@ class MujocoAdapter(EngineAdapter):
         solref = lambda eq: " ".join(f"{v:.6g}" for v in model.m.eq_solref[eq])
         info.update(build_time_s=build_time, step=model.dt, solimp=settings["solimp"],
                     solref=solref(model.loop_eq), drive_solref=solref(model.drive_eq))
-        return RawRun(frame, {}, info)
+        return RawRun(frame, {}, RunInfo.of(info))
 
 
 class WarningsSilenced:

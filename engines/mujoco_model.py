@@ -39,7 +39,7 @@ import pandas as pd
 from mechval.mechanism import GROUND, Joint, Mechanism, point_motion, rotate
 
 from .base import Unrepresentable
-from .settings import Number, Numbers
+from mechval.settings import Number, Numbers
 
 CLOCK = "mechval_clock"
 #: The equalities: the loop closure at the cut pin, the drive.

@@ -48,10 +48,10 @@ import numpy as np
 import pandas as pd
 from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism, rotate
 
-from .base import EngineAdapter, RawRun, default_step
+from .base import EngineAdapter, RawRun, RunInfo, default_step
 from .pybullet_model import NO_CAP, Model, build, p   # p: pybullet, imported quietly there
 from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_slides, slide_reaction
-from .settings import TIMESTEP, Choice, Number, Setting
+from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
 #: base.default_step). PyBullet's rocker sensor converges only as O(dt)
@@ -127,7 +127,7 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
         info["derived_reactions"] = "; ".join(DERIVED_NOTE.format(joint=j.name, body=j.body_j) for j in slides)
     if slides and preroll == 0:
         missing.update({f"{j.name}.{q}": NO_EARLIER_STEP for j in slides for q in ("Fx", "Fy", "M")})
-    return RawRun(frame, missing, info)
+    return RawRun(frame, missing, RunInfo.of(info))
 
 
 def step_plan(times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, int, int]:

@@ -32,6 +32,9 @@ ADAPTERS = {
     "exudyn": "mechval.engines.exudyn:ExudynAdapter",
 }
 ENGINE_NAMES = tuple(ADAPTERS)
+#: The analytic reference is an adapter too; it is not an engine to compare.
+REFERENCE = "reference"
+REFERENCE_ADAPTER = "mechval.reference:ReferenceAdapter"
 ENTRY_POINT_GROUP = "mechval.engines"
 
 
@@ -66,7 +69,7 @@ def engine_names() -> tuple[str, ...]:
 
 def adapter_class(name: str) -> "type[EngineAdapter]":
     """The named adapter class (imports its module, not the engine library)."""
-    target = targets().get(name)
+    target = REFERENCE_ADAPTER if name == REFERENCE else targets().get(name)
     if target is None:
         raise UnknownEngine(name)
     module_name, _, class_name = target.partition(":")
@@ -84,7 +87,8 @@ def adapter_class(name: str) -> "type[EngineAdapter]":
 
 
 def adapter(name: str) -> "EngineAdapter":
-    """An instance of the named adapter; raises UnknownEngine/EngineUnavailable."""
+    """An instance of the named adapter ("reference" included); raises
+    UnknownEngine/EngineUnavailable."""
     cls = adapter_class(name)
     reason = cls.unavailable_reason()
     if reason:

@@ -133,16 +133,16 @@ def scenario_hash(scenario: Scenario, engine: str) -> str:
 
 
 def metadata(scenario: Scenario, setting: str, overrides: Mapping[str, Any], signals: Signals,
-             setting_keys: set[str], provenance: Mapping[str, str]) -> dict[str, Any]:
+             provenance: Mapping[str, str]) -> dict[str, Any]:
     """The JSON record of a run: engine, version, settings (the resolved
-    inputs, keys `setting_keys`) apart from the run's own facts (steps taken,
-    measured gap, wall time), scenario and its hash, machine and commit."""
-    plain = json.loads(json.dumps(dict(signals.settings), default=repr))
+    inputs) apart from the run's own facts (steps taken, measured gap, wall
+    time), scenario and its hash, machine and commit."""
+    plain = lambda values: json.loads(json.dumps(dict(values), default=repr))
     return {
         "engine": signals.source, "version": signals.version, "setting": setting,
-        "overrides": json.loads(json.dumps(dict(overrides), default=repr)),
-        "settings": {k: v for k, v in plain.items() if k in setting_keys},
-        "run_info": {k: v for k, v in plain.items() if k not in setting_keys},
+        "overrides": plain(overrides),
+        "settings": plain(signals.settings),
+        "run_info": plain(signals.info.as_dict()),
         "missing": dict(signals.missing),
         "scenario": scenario.name, "scenario_hash": scenario_hash(scenario, signals.source),
         "samples": len(signals.frame), "provenance": dict(provenance),

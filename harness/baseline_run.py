@@ -12,8 +12,7 @@ from typing import Any, Mapping
 
 import pandas as pd
 
-from mechval.engines.registry import adapter, adapter_class
-from mechval.linkages import build_mechanism
+from mechval.engines.registry import adapter_class
 from mechval.outcome import Outcome, Task
 from mechval.reports.build import provenance
 from mechval.scenario import ScenarioError
@@ -99,10 +98,8 @@ def save_command_line(task: Task, root: Path, force: bool = False) -> str:
 
 
 def run_metadata(task: Task, signals: Signals, provenance: Mapping[str, str]) -> dict[str, Any]:
-    """`baseline.metadata` of a finished task; which recorded settings are
-    inputs (not facts of the run) is what the adapter resolves for it."""
-    keys = set(adapter(task.engine).settings_for(task.scenario, build_mechanism(task.scenario), task.overrides))
-    return bl.metadata(task.scenario, task.setting, task.overrides, signals, keys, provenance)
+    """`baseline.metadata` of a finished task."""
+    return bl.metadata(task.scenario, task.setting, task.overrides, signals, provenance)
 
 
 def check_run(root: Path, task: Task, signals: Signals, reference: Signals, provenance: Mapping[str, str],

@@ -15,8 +15,7 @@ from mechval.audit import format_audit
 from mechval.compare import passed
 from mechval.cost_tables import cheapest, convergence, format_tables
 from mechval.engines.findings import measure_findings
-from mechval.engines.registry import EngineUnavailable, UnknownEngine, adapter, availability, engine_names
-from mechval.reference import simulate_reference
+from mechval.engines.registry import REFERENCE, EngineUnavailable, UnknownEngine, adapter, availability, engine_names
 from mechval.reports.build import provenance, summary_markdown, write_report
 from mechval.reports.cost_report import cost_section, write_cost_report, write_table
 from mechval.reports.audit import audit_section
@@ -33,6 +32,7 @@ from .cost import sweep
 from .executors import DASK_CONNECT_TIMEOUT, LocalExecutor, SchedulerUnreachable, dask_address_problem, executor_for
 from .interrupts import Interrupted, stop_on_signals
 from .runner import discrepancies, references_for, run_tasks, tasks_for
+from .simulate import simulate
 
 
 class UsageError(Exception):
@@ -85,13 +85,6 @@ def cmd_list(args) -> int:
     return 0
 
 
-def simulate(scenario, engine: str):
-    """Canonical signals of `engine` ('reference' or an adapter name)."""
-    if engine == "reference":
-        return simulate_reference(scenario)
-    return adapter(engine).simulate(scenario)
-
-
 def cmd_simulate(args) -> int:
     scenario = _load(args.scenario)
     signals = simulate(scenario, args.engine)
@@ -112,7 +105,7 @@ def _engines(names: list[str] | None) -> list[str]:
     """The requested engines (all installed ones by default); a requested
     engine that is not installed is an error, an unrequested one is skipped
     with its reason."""
-    if names and "reference" in names:
+    if names and REFERENCE in names:
         raise UsageError("'reference' is the analytic solution every engine is compared with, not an engine "
                          "to run here (use it with `mechval simulate`)")
     if names:

@@ -12,8 +12,8 @@ Time is measured inside the worker: the whole `simulate` call (integration,
 reading the signals out, mapping them) minus the adapter's `build_time_s`,
 median of the repeats, per simulated second. The adapters' own
 `wall_time_s` (differently scoped: MuJoCo's is the rollout alone) is kept
-as `engine_s_per_sim_s`. The reference is timed the same way (whole
-`simulate_reference` call) and every time is also given as a ratio to it.
+as `engine_s_per_sim_s`. The reference is timed the same way (the
+same `simulate` call, its adapter's) and every time is also given as a ratio to it.
 
 Errors are those of `mechval.compare.compare`, the largest per signal
 class: relative to the signal's peak for relative classes, absolute (rad,
@@ -37,11 +37,11 @@ from mechval.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE
 from mechval.engines.registry import adapter
 from mechval.kinematics import step_rate
 from mechval.linkages import build_mechanism
-from mechval.reference import simulate_reference
 from mechval.scenario import Scenario, Tolerance, require_unique_names
 from mechval.signals import SIGNAL_CLASS, Signals
 
 from .executors import Done, Executor
+from .simulate import simulate
 
 
 
@@ -70,21 +70,17 @@ class Measurement:
 
 def measure_point(point: Point) -> Measurement:
     """Worker body: simulate the point `repeats` times, timing each call."""
-    if point.engine == REFERENCE:
-        simulate: Callable[[Scenario], Signals] = simulate_reference
-    else:
-        engine = adapter(point.engine)     # imports the engine before any timing
-        simulate = lambda scenario: engine.simulate(scenario, point.overrides)
+    engine = adapter(point.engine)     # imports the engine before any timing
     first, run_s, build_s, engine_s = None, [], [], []
     for _ in range(point.repeats):
         start = time.perf_counter()
-        signals = simulate(point.scenario)
+        signals = simulate(point.scenario, engine, point.overrides)
         total = time.perf_counter() - start
         first = signals if first is None else first
-        build = float(signals.settings.get("build_time_s", 0.0))
+        build = signals.info.build_time_s or 0.0
         run_s.append(total - build)
         build_s.append(build)
-        engine_s.append(float(signals.settings.get("wall_time_s", np.nan)))
+        engine_s.append(np.nan if signals.info.wall_time_s is None else signals.info.wall_time_s)
     return Measurement(first, tuple(run_s), tuple(build_s), tuple(engine_s))
 
 

@@ -14,20 +14,20 @@ from typing import Callable, Iterable, Mapping
 import pandas as pd
 
 from mechval.compare import COLUMNS, compare
-from mechval.engines.registry import adapter
+from mechval.engines.registry import REFERENCE, adapter
 from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome, Task
-from mechval.reference import simulate_reference
 from mechval.scenario import Scenario, require_unique_names
 from mechval.signals import Signals
 
 from .executors import Done, LocalExecutor
+from .simulate import simulate
 
 
 def simulate_task(task: Task) -> tuple[Signals, float]:
     """Worker body: the engine's canonical signals and the wall time."""
     start = time.perf_counter()
-    signals = adapter(task.engine).simulate(task.scenario, task.overrides)
+    signals = simulate(task.scenario, task.engine, task.overrides)
     return signals, time.perf_counter() - start
 
 
@@ -90,4 +90,5 @@ def references_for(scenarios: Iterable[Scenario]) -> dict[str, Signals]:
     """The reference per scenario name (names are refused unless unique)."""
     scenarios = list(scenarios)
     require_unique_names(scenarios)
-    return {s.name: simulate_reference(s) for s in scenarios}
+    reference = adapter(REFERENCE)
+    return {s.name: simulate(s, reference) for s in scenarios}

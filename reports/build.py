@@ -160,7 +160,7 @@ def _runs(outcomes: Iterable[Outcome]) -> list[dict]:
     runs = []
     for o in outcomes:
         s = o.signals
-        details = o.error if s is None else json.dumps(dict(s.settings), default=str, sort_keys=True)
+        details = o.error if s is None else json.dumps({**s.settings, **s.info.as_dict()}, default=str, sort_keys=True)
         runs.append(dict(scenario=o.task.scenario.name, engine=o.task.engine, setting=o.task.setting,
                          version=s.version if s else "", wall=f"{o.wall_time:.3g}" if s else "", details=details))
     return runs

@@ -16,6 +16,7 @@ from mechval.audit import AuditResult
 from mechval.harness.audit_run import audit_scenario
 from mechval.linkages import build_mechanism
 from mechval.reports.audit import audit_section
+from mechval.harness.simulate import simulate
 
 ENGINES = ("mujoco", "pybullet", "exudyn")
 
@@ -205,7 +206,7 @@ def test_pybullet_tree_layout_refuses_a_loop_closed_at_a_slide():
     assert "layout 'tree' would close the loop at the prismatic joint 'slot'" in \
         audit_scenario(scenario, "pybullet", {"layout": "tree"}).error
     with pytest.raises(ValueError, match="use layout 'split'"):
-        adapter.simulate(scenario, {"layout": "tree"})
+        simulate(scenario, adapter, {"layout": "tree"})
     assert audit_scenario(builtin_scenario("slider-crank"), "pybullet", {"layout": "tree"}).ok
 
 

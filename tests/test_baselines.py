@@ -30,6 +30,7 @@ from mechval.harness.runner import tasks_for
 from mechval.outcome import Task
 from mechval.scenarios import builtin_path
 from mechval.signals import Signals
+from mechval.harness.simulate import simulate
 
 ROOT = Path(__file__).resolve().parent.parent / "baselines"
 NOT_HARD = [n for n in BUILTIN if "hard" not in builtin_scenario(n).tags]
@@ -48,7 +49,7 @@ def test_engine_matches_its_baseline(task, tmp_path):
     the command that records one. A regression's new signals go to
     tmp_path (named in the message), never into the committed tree."""
     engine = engine_or_skip(task.engine)
-    signals = engine.simulate(task.scenario, task.overrides)
+    signals = simulate(task.scenario, engine, task.overrides)
     verdict, text = check_run(ROOT, task, signals, builtin_reference(task.scenario.name), provenance(),
                               obtained_root=tmp_path)
     assert verdict == "ok", "\n" + text

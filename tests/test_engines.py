@@ -12,6 +12,7 @@ import pytest
 from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
 from mechval.compare import compare, format_records, passed
 from mechval.engines.registry import ENGINE_NAMES
+from mechval.harness.simulate import simulate
 
 
 @pytest.mark.engine
@@ -21,7 +22,7 @@ def test_engine_matches_reference(engine_name, scenario_name, record_comparison)
     engine = engine_or_skip(engine_name)
     scenario = builtin_scenario(scenario_name)
     start = time.perf_counter()
-    result = engine.simulate(scenario)
+    result = simulate(scenario, engine)
     wall_time = time.perf_counter() - start
     records = compare(builtin_reference(scenario_name), result, scenario.tolerance_for(engine_name),
                       scenario=scenario_name)
@@ -62,5 +63,5 @@ def test_turning_point_mass_meets_default_tolerances(engine_name, scene):
     engine = engine_or_skip(engine_name)
     scenario = parse(POINT_MASS_SCENES[scene], f"{scene}.toml")
     assert all(m.izz == 0.0 for link, m in scenario.mass.items() if link in ("block", "rocker"))
-    records = compare(simulate_reference(scenario), engine.simulate(scenario), scenario.tolerance, scenario=scene)
+    records = compare(simulate_reference(scenario), simulate(scenario, engine), scenario.tolerance, scenario=scene)
     assert passed(records), "\n" + format_records(records)

@@ -16,6 +16,7 @@ from mechval.engines.registry import ENGINE_NAMES
 from mechval.reference import simulate_reference
 from mechval.scenario import ScenarioError, TimeGrid
 from mechval.scenarios import parse
+from mechval.harness.simulate import simulate
 from scenario_data import slider_crank
 
 HARD = [name for name in BUILTIN if "hard" in builtin_scenario(name).tags]
@@ -48,7 +49,7 @@ def test_hard_scenarios_exist():
 def test_engine_stable_and_accurate(engine_name, scenario_name, record_comparison):
     engine = engine_or_skip(engine_name)
     scenario, reference = hard_case(scenario_name)
-    result = engine.simulate(scenario)
+    result = simulate(scenario, engine)
     records = compare(reference, result, scenario.tolerance_for(engine_name), scenario=scenario.name)
     record_comparison(scenario, engine_name, result, records)
     health = records[records["class"] == "health"].set_index("signal")

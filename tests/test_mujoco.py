@@ -23,6 +23,7 @@ from scenario_data import fourbar, slider_crank
 mujoco = pytest.importorskip("mujoco")
 
 from mechval.engines.mujoco import Model, MujocoAdapter  # noqa: E402  (needs mujoco)
+from mechval.harness.simulate import simulate
 
 FORCE_CLASSES = ("force", "torque")
 #: Inverse mode evaluates the same equations as the reference at the same
@@ -108,7 +109,7 @@ def test_model_has_only_the_scenes_effects(engine, name):
                                   else n for n in BUILTIN])
 def test_inverse_mode_reproduces_the_reference(engine, name):
     scenario = builtin_scenario(name)
-    result = engine.simulate(scenario, {"mode": "inverse"})
+    result = simulate(scenario, engine, {"mode": "inverse"})
     records = compare(builtin_reference(name), result, scenario.tolerance, scenario=name, setting="inverse")
     assert worst_relative(records) <= INVERSE_AGREEMENT, "\n" + format_records(records)
 
@@ -120,13 +121,13 @@ def static_scene(gravity, kind=fourbar):
 
 
 def test_gravity_signs(engine):
-    down, up = (engine.simulate(static_scene(g)) for g in ([0.0, -9.81], [0.0, 9.81]))
+    down, up = (simulate(static_scene(g), engine) for g in ([0.0, -9.81], [0.0, 9.81]))
     # The crank's and coupler's weight turn the horizontal crank clockwise:
     # the motor holds it with a positive (counter-clockwise) torque, the
     # ground pushes the crank up; reversed gravity reverses both.
     assert (down["T12"] > 0).all() and (down["F12y"] > 0).all()
     np.testing.assert_allclose(up["T12"], -down["T12"], rtol=1e-6)
-    slider = engine.simulate(static_scene([0.0, -9.81], slider_crank))
+    slider = simulate(static_scene([0.0, -9.81], slider_crank), engine)
     assert (slider["F14y"] > 0).all()                # the guide carries the slider's weight
 
 
@@ -135,7 +136,7 @@ def test_torque_sign(engine):
     # equal to the reference's (inertia only).
     scenario = parse(fourbar(drive={"phi0": 0.0, "omega0": 0.0, "alpha": 5.0}, effects={},
                              time={"end": 0.1, "samples": 11}), "spin-up")
-    result = engine.simulate(scenario)
+    result = simulate(scenario, engine)
     assert (result["T12"] > 0).all()
     np.testing.assert_allclose(result["T12"], simulate_reference(scenario)["T12"], rtol=1e-4)
 
@@ -143,7 +144,7 @@ def test_torque_sign(engine):
 @pytest.mark.parametrize("setting", ["default", "high-accuracy"])
 def test_accuracy_on_fourbar_seed(engine, setting):
     scenario = builtin_scenario("fourbar-seed")
-    result = engine.simulate(scenario, MujocoAdapter.variants[setting])
+    result = simulate(scenario, engine, MujocoAdapter.variants[setting])
     records = compare(builtin_reference("fourbar-seed"), result, scenario.tolerance, scenario="fourbar-seed",
                       setting=setting)
     goal = DEFAULT_GOAL if setting == "default" else HIGH_ACCURACY_GOAL
@@ -153,16 +154,16 @@ def test_accuracy_on_fourbar_seed(engine, setting):
 @pytest.mark.parametrize("name", list(USER_SCENES))
 def test_users_scene_meets_default_tolerances(engine, name):
     scenario = parse(USER_SCENES[name], name)
-    result = engine.simulate(scenario)
+    result = simulate(scenario, engine)
     records = compare(simulate_reference(scenario), result, scenario.tolerance, scenario=name)
     assert passed(records), "\n" + format_records(records)
-    assert result.settings["closure_gap_max"] < 1e-6
+    assert result.info.facts["closure_gap_max"] < 1e-6
 
 
 def test_scenario_table_overrides_settings(engine):
     scenario = parse(slider_crank(time={"end": 0.2, "samples": 41},
                                   engines={"mujoco": {"timestep": 5e-4, "mode": "inverse"}}), "override")
-    result = engine.simulate(scenario)
+    result = simulate(scenario, engine)
     assert result.settings["timestep"] == 5e-4 and result.settings["mode"] == "inverse"
 
 
@@ -222,7 +223,7 @@ def test_prismatic_joint_between_moving_bodies(engine, mode, goal, o4_on_ground)
         # m/s² (absolute) rather than relative to a zero peak.
         error = np.abs(raw.frame[column] - expected[column]).max() / (np.abs(expected[column]).max() or 1.0)
         assert error <= goal, f"{column}: {error:.3g} relative"
-    assert raw.info["closure_gap_max"] < 1e-6
+    assert raw.info.facts["closure_gap_max"] < 1e-6
 
 
 def forward_states(model: Model, count: int) -> np.ndarray:
@@ -282,7 +283,7 @@ def test_a_blow_up_is_reported_not_logged_to_the_working_directory(engine, tmp_p
     mech = build_mechanism(scenario)
     settings = {**engine.settings_for(scenario, mech), "integrator": "Euler"}
     raw = engine.run(mech, scenario.time.t, settings)
-    assert raw.info["warnings"] > 0 and "mjWARN_BADQACC" in raw.info["warning_kinds"]
+    assert raw.info.warnings > 0 and "mjWARN_BADQACC" in raw.info.facts["warning_kinds"]
     assert not list(tmp_path.iterdir())
     assert mujoco.get_mju_user_warning() is None                      # MuJoCo's default restored
 
@@ -308,7 +309,7 @@ def test_a_single_instant_without_pre_roll(engine):
     mech = build_mechanism(scenario)
     settings = {**engine.default_settings(mech, scenario.time.t), "preroll_timeconsts": 0.0}
     raw = engine.run(mech, scenario.time.t[:1], settings)
-    assert raw.info["steps"] == 0 and len(raw.frame) == 1
+    assert raw.info.steps == 0 and len(raw.frame) == 1
     assert np.all(np.isfinite(raw.frame.to_numpy()))
 
 
@@ -396,7 +397,7 @@ def test_point_mass_block_inverse_mode_reproduces_the_reference(engine, scale):
     borrows from the lever is taken out of it again. (Left in, it is
     MIN_IZZ·α4: 1e-7 of the torques on a millimetre-and-gram lever.)"""
     scenario = scene_with_block(0.5 * scale, scale)
-    result = engine.simulate(scenario, {"mode": "inverse"})
+    result = simulate(scenario, engine, {"mode": "inverse"})
     records = compare(simulate_reference(scenario), result, scenario.tolerance, setting="inverse")
     assert worst_relative(records) <= INVERSE_AGREEMENT, "\n" + format_records(records)
 
@@ -407,16 +408,16 @@ def test_masses_mujoco_cannot_hold_are_refused_with_the_key(engine, monkeypatch)
     compiler's error was a traceback)."""
     import dataclasses
 
-    from mechval.engines import base
     from mechval.engines.base import Unrepresentable
+    from mechval.harness import simulate as harness_simulate
     from mechval.scenario import ScenarioError
     scenario = builtin_scenario("slider-crank")
     mech = build_mechanism(scenario)
     light = dataclasses.replace(mech, bodies=tuple(dataclasses.replace(b, mass=1e-300) if b.name == "crank" else b
                                                    for b in mech.bodies))
-    monkeypatch.setattr(base, "build_mechanism", lambda s: light)
+    monkeypatch.setattr(harness_simulate, "build_mechanism", lambda s: light)
     with pytest.raises(ScenarioError, match="mass.crank: mujoco: MuJoCo refuses a moving body lighter") as refused:
-        engine.simulate(scenario)
+        simulate(scenario, engine)
     assert refused.value.source == str(scenario.source)
     block = build_mechanism(scene_with_block(0.5))
     bare = dataclasses.replace(block, bodies=tuple(dataclasses.replace(b, izz=0.0) if b.name == "lever" else b

@@ -21,6 +21,7 @@ from test_linkages_more import VARIANTS as SLIDE_VARIANTS
 p = pytest.importorskip("pybullet")
 from mechval.engines.pybullet import run_model  # noqa: E402
 from mechval.engines.pybullet_model import NO_CAP, build  # noqa: E402
+from mechval.harness.simulate import simulate
 
 #: Forces and torque of the short seed at the default setting (measured
 #: 3.9e-5); a re-armed default must make them clearly worse than this.
@@ -54,7 +55,7 @@ def records(adapter, scenario, overrides=None, prepare=None):
     mechanism = build_mechanism(scenario)
     settings = adapter.settings_for(scenario, mechanism, overrides)
     raw = run_model(mechanism, scenario.time.t, settings, prepare)
-    result = canonical_signals(mechanism, raw.frame, "pybullet", settings=raw.info, missing=raw.missing)
+    result = canonical_signals(mechanism, raw.frame, "pybullet", missing=raw.missing, info=raw.info)
     return compare(simulate_reference(scenario), result, scenario.tolerance, scenario=scenario.name)
 
 
@@ -206,7 +207,7 @@ def test_gravity_and_torque_signs(adapter):
     results = {}
     for g in (-9.81, 9.81):
         scenario = parse(slider_crank(effects={"gravity": [0.0, g]}, **held), "test")
-        result, reference = adapter.simulate(scenario), simulate_reference(scenario)
+        result, reference = simulate(scenario, adapter), simulate_reference(scenario)
         for name in ("T12", "F12y", "F32y", "F43y", "F14y"):
             np.testing.assert_allclose(result[name], reference[name], rtol=1e-6, atol=1e-9, err_msg=name)
         results[g] = result
@@ -252,12 +253,12 @@ def test_slide_reaction_is_declared_derived(adapter):
     first sample has no step before it, so the derived reaction is missing
     there, with the reason, and nowhere else."""
     scenario = parse(SLIDE_VARIANTS["pump-left"], "pump-left.toml")
-    result = adapter.simulate(scenario, {"preroll_steps": 0})
-    assert "sleeve: F and M derived from the balance of rod" in result.settings["derived_reactions"]
+    result = simulate(scenario, adapter, {"preroll_steps": 0})
+    assert "sleeve: F and M derived from the balance of rod" in result.info.facts["derived_reactions"]
     for name in ("F43x", "F43y", "N43", "M43"):
         assert "preroll_steps = 0" in result.missing[name], name
         assert np.isnan(result[name][0]) and np.isfinite(result[name][1:]).all(), name
-    assert "derived_reactions" not in adapter.simulate(short_seed()).settings
+    assert "derived_reactions" not in simulate(short_seed(), adapter).info.facts
 
 
 def late_seed():

@@ -17,12 +17,13 @@ from mechval.engines.exudyn import ExudynAdapter, prepare
 from mechval.engines.exudyn_model import SOLVERS
 from mechval.linkages import build_mechanism
 from mechval.scenarios import load
+from mechval.harness.simulate import simulate
 from timing import best_times, scenario_arguments
 
 
 def whole_run(adapter: ExudynAdapter, scenario) -> float:
     start = time.perf_counter()
-    adapter.simulate(scenario)
+    simulate(scenario, adapter)
     return time.perf_counter() - start
 
 
@@ -47,8 +48,8 @@ def main() -> None:
           f"{'µs/step':>8s} {'bare s':>7s} {'overhead':>8s}")
     for name in args.scenarios:
         scenario = load(name)
-        result = adapter.simulate(scenario)
-        steps = result.settings["steps"]
+        result = simulate(scenario, adapter)
+        steps = result.info.steps
         run, bare = best_times(args.repeats, lambda: whole_run(adapter, scenario),
                                lambda: bare_solve(adapter, scenario))
         simulated = scenario.time.end

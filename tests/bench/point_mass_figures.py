@@ -21,6 +21,7 @@ from mechval.compare import compare  # noqa: E402
 from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, adapter  # noqa: E402
 from mechval.reference import simulate_reference  # noqa: E402
 from mechval.scenarios import parse  # noqa: E402
+from mechval.harness.simulate import simulate
 from scenario_data import merge  # noqa: E402
 
 
@@ -38,7 +39,7 @@ def main() -> None:
         reference = simulate_reference(scenario)
         for engine in ENGINE_NAMES:
             try:
-                result = adapter(engine).simulate(scenario)
+                result = simulate(scenario, adapter(engine))
             except EngineUnavailable as exc:
                 print(f"{name:30s} {engine:9s} skipped: {exc}")
                 continue
@@ -51,7 +52,7 @@ def main() -> None:
         data = merge(block, {"geometry": {k: v * scale for k, v in g.items()},
                              "mass": {k: v * scale for k, v in m.items()}})
         scenario = parse(data, "block.toml")
-        records = compare(simulate_reference(scenario), adapter("mujoco").simulate(scenario, {"mode": "inverse"}),
+        records = compare(simulate_reference(scenario), simulate(scenario, adapter("mujoco"), {"mode": "inverse"}),
                           scenario.tolerance).set_index("signal")
         forces = records[records["class"].isin(["force", "torque"])]["relative_error"]
         print(f"mujoco inverse, block scale {scale:g}: M43 {records.loc['M43', 'max_error']:.2g} N·m "

@@ -20,12 +20,13 @@ from mechval.engines.pybullet import PybulletAdapter
 from mechval.engines.pybullet_model import NO_CAP, build, p
 from mechval.linkages import build_mechanism
 from mechval.scenarios import load
+from mechval.harness.simulate import simulate
 from timing import best_times, scenario_arguments
 
 
 def whole_run(adapter: PybulletAdapter, scenario) -> float:
     start = time.perf_counter()
-    adapter.simulate(scenario)
+    simulate(scenario, adapter)
     return time.perf_counter() - start
 
 

@@ -24,6 +24,7 @@ from mechval.engines import pybullet as adapter_module  # noqa: E402
 from mechval.engines.registry import adapter  # noqa: E402
 from mechval.linkages import build_mechanism  # noqa: E402
 from mechval.reference import simulate_reference  # noqa: E402
+from mechval.harness.simulate import simulate
 from test_linkages_more import SCENES  # noqa: E402
 
 SLIDE = ("F43x", "F43y", "N43", "M43")
@@ -36,12 +37,12 @@ def ratios(scenario, overrides, sensor: bool):
     if sensor:
         adapter_module.Stepper.slide_reactions = lambda self, *args: {}
     try:
-        result = adapter("pybullet").simulate(scenario, overrides)
+        result = simulate(scenario, adapter("pybullet"), overrides)
     finally:
         adapter_module.Stepper.slide_reactions = derive
     records = compare(simulate_reference(scenario), result, scenario.tolerance, scenario=scenario.name)
     records = records[records["class"].isin(["force", "torque"])].set_index("signal")["ratio"]
-    return records, result.settings["timestep_used"]
+    return records, result.info.facts["timestep_used"]
 
 
 def main(argv: list[str]) -> None:

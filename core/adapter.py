@@ -1,0 +1,154 @@
+"""The adapter contract (docs/adapters.md): what every engine adapter, and
+the analytic reference, implements.
+
+An adapter turns a `Mechanism` into a model, drives it (or lets it run) as
+the mechanism says, and returns raw motion and reaction columns (see
+`mechval.mechanism`) at the requested instants, already in the Fij
+convention, with a typed record of what the run did (`RunInfo`). Settings
+are declared (`settings_spec`) and checked here, before any run. Mapping to
+the canonical signals, health and comparison happen in the harness.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+import pandas as pd
+
+from .mechanism import Mechanism
+from .scenario import Scenario, ScenarioError
+from .settings import TIMESTEP, Setting
+
+#: The finest step a setting may ask for, as steps per sample interval:
+#: beyond it a run cannot finish (nor its states fit in memory).
+MAX_STEPS_PER_SAMPLE = 10**6
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """What a run did, kept apart from its settings (what it was asked to
+    do): time to build the model and to simulate (s), steps taken, engine
+    warnings, and engine-specific facts worth keeping (e.g. the measured
+    loop-closure gap, the solver parameters actually used)."""
+
+    build_time_s: float | None = None
+    wall_time_s: float | None = None
+    steps: int | None = None
+    warnings: int | None = None
+    facts: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, values: Mapping[str, Any]) -> "RunInfo":
+        """The record of a flat mapping: its known fields, the rest as facts."""
+        known = {f: values[f] for f in RUN_INFO_FIELDS if f in values}
+        return cls(**known, facts={k: v for k, v in values.items() if k not in RUN_INFO_FIELDS})
+
+    def as_dict(self) -> dict[str, Any]:
+        """Flat: the fields that were recorded, then the facts."""
+        fields = {f: getattr(self, f) for f in RUN_INFO_FIELDS if getattr(self, f) is not None}
+        return {**fields, **self.facts}
+
+
+RUN_INFO_FIELDS = ("build_time_s", "wall_time_s", "steps", "warnings")
+
+
+@dataclass(frozen=True)
+class RawRun:
+    """An adapter's output: raw columns at the requested instants, the
+    reason for every column with missing values, and the run's facts."""
+
+    frame: pd.DataFrame
+    missing: Mapping[str, str] = field(default_factory=dict)
+    info: RunInfo = field(default_factory=RunInfo)
+
+
+class Unrepresentable(ValueError):
+    """The engine cannot represent this (valid) scene, e.g. a mass below
+    what its compiler accepts. `key` names the scenario key at fault;
+    the harness reports it as a ScenarioError with the scenario's file."""
+
+    def __init__(self, key: str, reason: str):
+        self.key, self.reason = key, reason
+        super().__init__(f"{key}: {reason}")
+
+    def __reduce__(self):
+        return type(self), (self.key, self.reason)
+
+
+class EngineAdapter(ABC):
+    name: ClassVar[str]
+    #: The import name of the engine library, and its distribution on PyPI.
+    library: ClassVar[str]
+    distribution: ClassVar[str]
+    #: What each setting accepts (type, range or choices; see `settings`).
+    #: Its keys are exactly those of `default_settings`.
+    settings_spec: ClassVar[Mapping[str, Setting]] = {"timestep": TIMESTEP}
+    #: Settings reported by `mechval run`: name → overrides of the defaults.
+    variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
+    #: Work-precision sweeps (`mechval cost`): the setting that is the time
+    #: step; the ladder of steps as rotations per step at the run's peak
+    #: rate Ω (`step_rate`; 0.1 … 0.001 rad spans two decades of step and
+    #: scales with the scene); the variants crossed with it (name →
+    #: overrides; the one with no overrides is the default).
+    step_setting: ClassVar[str] = "timestep"
+    cost_ladder: ClassVar[tuple[float, ...]] = (0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
+    cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
+
+    @classmethod
+    def unavailable_reason(cls) -> str:
+        try:
+            importlib.import_module(cls.library)
+        except ImportError as exc:   # not installed, or a broken installation
+            return f"{cls.library} cannot be imported ({type(exc).__name__}: {exc})"
+        return ""
+
+    @classmethod
+    def version(cls) -> str:
+        return importlib.metadata.version(cls.distribution)
+
+    @abstractmethod
+    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+        """Settings derived from the scenario so default tolerances are met."""
+
+    @abstractmethod
+    def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        """Simulate and return raw columns at `times` (see module docstring)."""
+
+    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
+                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Derived defaults, then the scenario's [engines.NAME] table, then
+        explicit overrides. An unknown key, a value `settings_spec` refuses
+        (type, range, choices), or a step that does not divide the sample
+        interval is refused with the file and key, before any run."""
+        settings = self.default_settings(mechanism, scenario.time.t)
+        for origin, table in (("file", scenario.settings_for(self.name)), ("override", overrides or {})):
+            source = scenario.source if origin == "file" else "settings override"
+            for key, value in table.items():
+                fail = lambda reason: ScenarioError(source, f"engines.{self.name}.{key}", reason)
+                if key not in self.settings_spec:
+                    raise fail(f"unknown setting (known: {', '.join(sorted(self.settings_spec))})")
+                try:
+                    value = self.settings_spec[key].parse(value)
+                except ValueError as exc:
+                    raise fail(str(exc)) from None
+                if key == self.step_setting and len(scenario.time.t) > 1:
+                    interval = float(scenario.time.t[1] - scenario.time.t[0])
+                    steps = interval / value
+                    if abs(steps - round(steps)) > 1e-9 * steps:
+                        raise fail(f"{value!r} s does not divide the sample interval {interval:.6g} s "
+                                   "(signals are read at the samples, so a whole number of steps must fit)")
+                    if steps > MAX_STEPS_PER_SAMPLE:
+                        raise fail(f"{value!r} s makes {steps:.3g} steps per sample interval ({interval:.6g} s), "
+                                   f"more than {MAX_STEPS_PER_SAMPLE:.0e}")
+                settings[key] = value
+        return settings
+
+    def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        """What the engine model `run` builds holds, read back and set
+        against the Mechanism (`mechval.audit`); adapters override this."""
+        raise NotImplementedError(f"{self.name}: no model audit")

@@ -1,0 +1,32 @@
+"""One run of one adapter on one scenario, as the harness does it for
+every adapter alike (the analytic reference included): the generic
+`Mechanism`, the checked settings, the adapter's raw run, then the
+canonical signals and the run's health."""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from mechval.adapter import EngineAdapter, Unrepresentable
+from mechval.engines.registry import adapter
+from mechval.health import health
+from mechval.linkages import build_mechanism
+from mechval.scenario import Scenario, ScenarioError
+from mechval.signals import Signals, canonical_signals
+
+
+def simulate(scenario: Scenario, engine: EngineAdapter | str,
+             overrides: Mapping[str, Any] | None = None) -> Signals:
+    """Canonical signals of `engine` (an adapter or a registered name) on
+    the scenario, with its settings, run facts and health (docs/adapters.md).
+    A scene the engine cannot represent is refused as bad input, naming the
+    scenario's file."""
+    engine_adapter = adapter(engine) if isinstance(engine, str) else engine
+    mechanism = build_mechanism(scenario)
+    settings = engine_adapter.settings_for(scenario, mechanism, overrides)
+    try:
+        raw = engine_adapter.run(mechanism, scenario.time.t, settings)
+    except Unrepresentable as exc:
+        raise ScenarioError(scenario.source, exc.key, f"{engine_adapter.name}: {exc.reason}") from None
+    return canonical_signals(mechanism, raw.frame, engine_adapter.name, engine_adapter.version(), settings,
+                             raw.missing, health(mechanism, raw.frame, raw.missing), raw.info)

@@ -159,11 +159,13 @@
   // an unticked engine's traces are hidden in every figure drawn.
   function applyFilter() {
     const engines = new Set(), verdicts = new Set();
-    document.querySelectorAll("#filter input[data-engine]").forEach(b => {
-      if (b.checked) engines.add(b.dataset.engine); else hiddenEngines.add(b.dataset.engine);
-      if (b.checked) hiddenEngines.delete(b.dataset.engine);
+    document.querySelectorAll("#filter input[data-engine]").forEach(box => {
+      if (box.checked) { engines.add(box.dataset.engine); hiddenEngines.delete(box.dataset.engine); }
+      else hiddenEngines.add(box.dataset.engine);
     });
-    document.querySelectorAll("#filter input[data-verdict]").forEach(b => { if (b.checked) verdicts.add(b.dataset.verdict); });
+    document.querySelectorAll("#filter input[data-verdict]").forEach(box => {
+      if (box.checked) verdicts.add(box.dataset.verdict);
+    });
     document.querySelectorAll("tr[data-verdict]").forEach(row => {
       row.hidden = !(engines.has(row.dataset.engine) && verdicts.has(row.dataset.verdict));
     });

@@ -19,6 +19,7 @@ import pandas as pd
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 import mechval
+from mechval.compare import HEALTH_BOUNDS
 from mechval.linkages import build_mechanism
 from mechval.runner import Outcome
 from mechval.scenario import Scenario
@@ -168,13 +169,19 @@ def _verdict(records: pd.DataFrame) -> str:
     return "fail" if (records["verdict"] == "fail").any() else "pass"
 
 
+def _bound_class(signal: str, cls) -> str | None:
+    """The tolerance class a record's bound comes from (health figures
+    borrow theirs, mechval.compare.HEALTH_BOUNDS)."""
+    return HEALTH_BOUNDS.get(signal.removeprefix("health.")) if cls == "health" else cls
+
+
 def _run_groups(scenario: Scenario, records: pd.DataFrame) -> list[dict]:
     notes = override_notes(scenario)
     groups = []
     for run, group in by_run(records).items():
         engine = group["engine"].iloc[0]
         rows = [dict(engine=engine, verdict=r["verdict"], cells={c: _fmt(r[c]) for c in RECORD_COLUMNS},
-                     override=notes.get(engine, {}).get(r["class"], ""))
+                     override=notes.get(engine, {}).get(_bound_class(r["signal"], r["class"]), ""))
                 for _, r in group.iterrows()]
         groups.append(dict(label=run, engine=engine, anchor=run_anchor(scenario.name, run), verdict=_verdict(group),
                            summary=_cell(group), rows=rows, overrides=list(notes.get(engine, {}).values())))

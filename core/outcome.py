@@ -17,6 +17,9 @@ class Task:
     engine: str
     setting: str = "default"
     overrides: Mapping[str, Any] = field(default_factory=dict)
+    #: Engine steps the run takes (simulated time / step), its expected
+    #: cost: `run_tasks` starts the longest runs first.
+    steps: float = 0.0
 
     @property
     def label(self) -> str:

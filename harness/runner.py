@@ -50,23 +50,34 @@ def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Tas
             for setting, overrides in variants.items():
                 # Bad [engines.NAME] settings are the user's input: refuse them
                 # here, with file and key, rather than as a failed run.
-                engine_adapter.settings_for(scenario, mechanism, overrides)
-                tasks.append(Task(scenario, engine, setting, dict(overrides)))
+                settings = engine_adapter.settings_for(scenario, mechanism, overrides)
+                step = settings.get(engine_adapter.step_setting)
+                steps = scenario.time.end / step if isinstance(step, float) and step > 0 else 0.0
+                tasks.append(Task(scenario, engine, setting, dict(overrides), steps))
     return tasks
 
 
 def run_tasks(tasks: list[Task], workers: int, timeout: float,
               on_done: Callable[[Outcome], None] = lambda outcome: None) -> list[Outcome]:
-    """Run every task in a worker process; failures become Outcomes."""
+    """Run every task in a worker process; failures become Outcomes, in the
+    tasks' order. The runs with the most steps start first, so that no long
+    run is left to finish alone while the other workers idle."""
     def outcome(task: Task, done: Done) -> Outcome:
         if done.error:
             return Outcome(task, None, done.error)
         signals, wall_time = done.value
         return Outcome(task, signals, wall_time=wall_time)
 
+    order = longest_first(tasks)
     results = LocalExecutor(workers, timeout).run(
-        simulate_task, tasks, lambda index, done: on_done(outcome(tasks[index], done)))
-    return [outcome(task, done) for task, done in zip(tasks, results)]
+        simulate_task, [tasks[k] for k in order], lambda index, done: on_done(outcome(tasks[order[index]], done)))
+    in_task_order = dict(zip(order, results))
+    return [outcome(task, in_task_order[k]) for k, task in enumerate(tasks)]
+
+
+def longest_first(tasks: list[Task]) -> list[int]:
+    """Indices of `tasks`, the most steps first (ties in the given order)."""
+    return sorted(range(len(tasks)), key=lambda k: -tasks[k].steps)
 
 
 def discrepancies(outcomes: list[Outcome], references: Mapping[str, Signals]) -> pd.DataFrame:

@@ -19,6 +19,7 @@ import pandas as pd
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 import mechval
+from mechval.compare import HEALTH_BOUNDS
 from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome
 from mechval.scenario import Scenario
@@ -30,6 +31,8 @@ TEMPLATES = Path(__file__).resolve().parent / "templates"
 RECORD_COLUMNS = ["engine", "setting", "signal", "max_error", "t_max", "rms_error", "relative_error", "bound",
                   "ratio", "verdict", "missing", "reason"]
 TEXT_COLUMNS = {"engine", "setting", "signal", "verdict", "reason"}
+#: Record verdicts the page filters by (mechval.compare).
+VERDICTS = ("fail", "pass", "missing")
 
 
 @dataclass(frozen=True)
@@ -106,8 +109,9 @@ def matrix_rows(records: pd.DataFrame, scenarios: Sequence[Scenario], cell) -> d
     for scenario in scenarios:
         runs = by_run(records[records["scenario"] == scenario.name])
         rows.append(dict(scenario=scenario.name, anchor=anchor(scenario.name),
-                         cells=[cell(runs.get(column, empty)) for column in columns]))
-    return dict(columns=columns, rows=rows)
+                         cells=[dict(cell(runs.get(column, empty)), href=run_anchor(scenario.name, column),
+                                     engine=engine) for column, (engine, _) in zip(columns, ordered)]))
+    return dict(columns=columns, engines=[engine for engine, _ in ordered], rows=rows)
 
 
 def summary_matrix(records: pd.DataFrame, scenarios: Sequence[Scenario]) -> dict:
@@ -141,18 +145,62 @@ def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta:
     return "\n".join(lines) + "\n"
 
 
+def run_anchor(scenario: str, run_label: str) -> str:
+    """The id of one engine run's records inside a scenario's section."""
+    return anchor(scenario) + "--" + "".join(c if c.isalnum() else "-" for c in run_label)
+
+
+def override_notes(scenario: Scenario) -> dict[str, dict[str, str]]:
+    """Engine → tolerance class → what its [engines.NAME.tolerance] entry
+    changes and the reason the scene file gives, so that a loosened bound
+    is never silent."""
+    notes: dict[str, dict[str, str]] = {}
+    for engine, table in scenario.engines.items():
+        for cls, bound in table.tolerance.items():
+            reason = table.reasons.get(cls) or "no reason given in the scene file"
+            notes.setdefault(engine, {})[cls] = (
+                f"{engine} override: {cls} {bound:.3g} (scenario {scenario.tolerance[cls]:.3g}): {reason}")
+    return notes
+
+
+def _verdict(records: pd.DataFrame) -> str:
+    if records.empty:
+        return "not run"
+    return "fail" if (records["verdict"] == "fail").any() else "pass"
+
+
+def _bound_class(signal: str, cls) -> str | None:
+    """The tolerance class a record's bound comes from (health figures
+    borrow theirs, mechval.compare.HEALTH_BOUNDS)."""
+    return HEALTH_BOUNDS.get(signal.removeprefix("health.")) if cls == "health" else cls
+
+
+def _run_groups(scenario: Scenario, records: pd.DataFrame) -> list[dict]:
+    notes = override_notes(scenario)
+    groups = []
+    for run, group in by_run(records).items():
+        engine = group["engine"].iloc[0]
+        rows = [dict(engine=engine, verdict=r["verdict"], cells={c: _fmt(r[c]) for c in RECORD_COLUMNS},
+                     override=notes.get(engine, {}).get(_bound_class(r["signal"], r["class"]), ""))
+                for _, r in group.iterrows()]
+        groups.append(dict(label=run, engine=engine, anchor=run_anchor(scenario.name, run), verdict=_verdict(group),
+                           summary=_cell(group), rows=rows, overrides=list(notes.get(engine, {}).values())))
+    return groups
+
+
 def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Outcome],
-                      records: pd.DataFrame) -> dict:
+                      records: pd.DataFrame, palette: Mapping[str, str]) -> dict:
     results = {label(o.task.engine, o.task.setting): o.signals for o in outcomes if o.signals is not None}
     mine = records[records["scenario"] == scenario.name]
     bounds = {run: dict(zip(group["signal"], group["bound"])) for run, group in by_run(mine).items()}
     return dict(
         name=scenario.name, anchor=anchor(scenario.name), mechanism=scenario.mechanism,
         description=scenario.description, tolerance=dict(scenario.tolerance.bounds),
-        drawing=plots.mechanism_drawing(build_mechanism(scenario), scenario.time.end),
-        overlays=plots.signal_overlays(reference, results),
-        errors=plots.error_plots(reference, results, bounds),
-        records=[{c: _fmt(r[c]) for c in RECORD_COLUMNS} for _, r in mine.iterrows()],
+        overrides=[note for engine in override_notes(scenario).values() for note in engine.values()],
+        verdict=_verdict(mine),
+        drawing=plots.mechanism_figure(build_mechanism(scenario), scenario.time.end),
+        signals=plots.signal_data(reference, results, bounds, palette),
+        runs=_run_groups(scenario, mine),
     )
 
 
@@ -176,13 +224,17 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
 
     def fill(folder: Path) -> None:
         env = Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html", "j2"]))
+        palette = plots.colours(label(e, s) for e, s in zip(records["engine"], records["setting"]))
         sections = [_scenario_section(s, references[s.name], [o for o in outcomes if o.task.scenario.name == s.name],
-                                      records) for s in scenarios]
+                                      records, palette) for s in scenarios]
+        sections.sort(key=lambda section: section["verdict"] != "fail")       # failures first, else as given
         html = env.get_template("report.html.j2").render(
             meta=meta, matrix=summary_matrix(records, scenarios), scenarios=sections, runs=_runs(outcomes),
             overall_pass=not (records["verdict"] == "fail").any(),
             failures=int(records[records["verdict"] == "fail"].groupby(["scenario", "engine", "setting"]).ngroups),
-            record_columns=RECORD_COLUMNS, text_columns=TEXT_COLUMNS, extra_sections=extra_sections)
+            engines=list(dict.fromkeys(records["engine"])), verdicts=VERDICTS,
+            record_columns=RECORD_COLUMNS, text_columns=TEXT_COLUMNS, extra_sections=extra_sections,
+            scripts=plots.page_scripts())
         (folder / "index.html").write_text(html, encoding="utf-8")
         records.to_csv(folder / "discrepancies.csv", index=False, float_format="%.17g")
         (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta), encoding="utf-8")

@@ -1,109 +1,268 @@
-"""Figures of a report as base64 PNG strings (embedded, so the HTML opens
-from disk with no network)."""
+"""Figures of a report as data that the page draws in the browser with
+Plotly (zoom, hover values, an engine's traces toggled from the legend).
+
+plotly.js is inlined once per page (`page_scripts`), with the small script
+`templates/report.js` that draws each figure when it scrolls into view. A
+figure is JSON inside `<script type="application/json">` (Jinja's `tojson`
+escapes `<`, `>` and `&`, so no text can close the script element).
+
+Signals here are display data, not results (every full-precision number
+is in the CSV files). To keep the page of all built-ins within a few
+megabytes, a scenario's signals are sent as the reference plus each
+engine's error against it (the page draws engine = reference + error),
+each as 16-bit codes (`linear_codes`, `log_codes`: ~5 significant digits),
+one deflated stream per scenario (`encode_stream`); a run with many
+samples is thinned to the minimum and maximum of every window of samples
+(`display_indices`), so no peak or spike is ever thinned away.
+"""
 
 from __future__ import annotations
 
 import base64
-import io
+import zlib
+from functools import lru_cache
+from pathlib import Path
+from typing import Mapping
 
-import matplotlib
+import numpy as np
+from markupsafe import Markup
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from mechval.mechanism import GROUND, Mechanism, point_motion, rotate  # noqa: E402
-from mechval.signals import SIGNAL_CLASS, Signals  # noqa: E402
+from mechval.mechanism import GROUND, Mechanism, point_motion, rotate
+from mechval.signals import SIGNAL_CLASS, Signals
 
 UNITS = {"angle": "rad", "position": "m", "velocity": "rad/s | m/s", "acceleration": "rad/s² | m/s²",
          "force": "N", "torque": "N·m"}
+#: Windows a long run is thinned to (min and max of each): about as many
+#: as a plot is pixels wide, so the thinned trace looks like the full one.
+DISPLAY_WINDOWS = 500
+#: Runs of up to this many samples are drawn whole: thinning them would
+#: keep most samples and add their indices and values to the page.
+DISPLAY_WHOLE = 4000
+#: Decades below a trace's largest error that are still drawn: float64
+#: carries ~16, so anything further down is rounding, not information.
+LOG_DECADES = 20.0
+#: Engine colours in the order runs first appear on the page (the
+#: reference is black); Plotly's default colour sequence.
+PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+           "#bcbd22", "#17becf")
+_U16_NAN = 65535        # linear_codes' code for NaN
+_I16_NAN = -32768       # log_codes' code for NaN
+_I16_TOP = 32766        # log_codes: 1 … 32767 for magnitudes, 0 for zero
 
 
-def to_png(fig) -> str:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=80, bbox_inches="tight")
-    plt.close(fig)
-    return base64.b64encode(buffer.getvalue()).decode("ascii")
+def display_indices(n: int, windows: int, *series: np.ndarray) -> np.ndarray | None:
+    """The samples to draw of `n`: None (all of them) when n ≤ 2·windows;
+    else the first and last sample and, in each of `windows` runs of
+    consecutive samples, the minimum and the maximum of every series (and
+    its first NaN, so a gap stays a gap). Sorted and unique.
+
+    Display only: a peak survives thinning by construction, even a single
+    sample, since it is the maximum of its window.
+    """
+    if n <= 2 * windows:
+        return None
+    width = -(-n // windows)                        # ceil: windows of `width` samples
+    starts = np.arange(windows) * width
+    keep = [np.array([0, n - 1])]
+    for values in series:
+        block = np.full(windows * width, np.nan)
+        block[:n] = values
+        block = block.reshape(windows, width)
+        nan = np.isnan(block)
+        finite = ~nan.all(axis=1)
+        keep.append((starts + np.where(nan, np.inf, block).argmin(axis=1))[finite])
+        keep.append((starts + np.where(nan, -np.inf, block).argmax(axis=1))[finite])
+        keep.append((starts + nan.argmax(axis=1))[nan.any(axis=1)])
+    indices = np.unique(np.concatenate(keep))
+    return indices[indices < n]
 
 
-def mechanism_drawing(mech: Mechanism, t_end: float, instants: int = 4) -> str:
-    """The linkage to scale at a few instants: every body as the polygon of
-    its joint points, ground pivots as triangles, guides as dashed lines."""
+def _thinned(n: int, *series: np.ndarray) -> np.ndarray | None:
+    return display_indices(n, DISPLAY_WINDOWS, *series) if n > DISPLAY_WHOLE else None
+
+
+def linear_codes(values: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Values as 16-bit steps of their range [lo, hi] (resolution
+    (hi − lo) / 65534), NaN as 65535: (uint16 codes, lo, hi)."""
+    values = np.asarray(values, dtype=float)
+    ok = np.isfinite(values)
+    lo, hi = (float(values[ok].min()), float(values[ok].max())) if ok.any() else (0.0, 0.0)
+    codes = np.full(values.shape, _U16_NAN, dtype=np.uint16)
+    codes[ok] = np.rint((values[ok] - lo) / ((hi - lo) or 1.0) * (_U16_NAN - 1)).astype(np.uint16)
+    return codes, lo, hi
+
+
+def log_codes(values: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Signed values as 16-bit steps of log10 |value| over [lo, hi], the
+    top LOG_DECADES below the largest magnitude (resolution ~0.14 % of the
+    value): sign kept, 0 for zero (or below lo), −32768 for NaN:
+    (int16 codes, lo, hi)."""
+    values = np.asarray(values, dtype=float)
+    magnitude = np.abs(values)
+    ok = np.isfinite(values) & (magnitude > 0)
+    hi = float(np.log10(magnitude[ok].max())) if ok.any() else 0.0
+    lo = hi - LOG_DECADES
+    codes = np.zeros(values.shape, dtype=np.int16)
+    level = (np.log10(np.where(ok, magnitude, 1.0)) - lo) / LOG_DECADES
+    drawn = ok & (level >= 0)
+    codes[drawn] = (np.sign(values[drawn]) * (1 + np.rint(level[drawn] * _I16_TOP))).astype(np.int16)
+    codes[~np.isfinite(values)] = _I16_NAN
+    return codes, lo, hi
+
+
+def linear_values(codes: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Inverse of linear_codes (to its resolution); report.js does the same."""
+    return np.where(codes == _U16_NAN, np.nan, lo + codes * ((hi - lo) / (_U16_NAN - 1)))
+
+
+def log_values(codes: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Inverse of log_codes (to its resolution); report.js does the same."""
+    codes = codes.astype(np.int16)
+    magnitude = 10.0 ** (lo + (np.abs(codes.astype(float)) - 1) * ((hi - lo) / _I16_TOP))
+    return np.where(codes == _I16_NAN, np.nan, np.where(codes == 0, 0.0, np.sign(codes) * magnitude))
+
+
+def encode_stream(codes: np.ndarray) -> str:
+    """16-bit codes (any sign) for the page: differences of neighbours
+    (modulo 2¹⁶; smooth signals give small ones), low bytes then high
+    bytes, deflated (zlib; the browser's DecompressionStream inflates it),
+    base64."""
+    words = codes.view(np.uint16) if codes.dtype.itemsize == 2 else codes.astype(np.uint16)
+    steps = np.diff(words, prepend=np.uint16(0))         # wraps modulo 2¹⁶, as intended
+    planes = np.concatenate([steps & 0xFF, steps >> 8]).astype(np.uint8)
+    return base64.b64encode(zlib.compress(planes.tobytes(), 9)).decode("ascii")
+
+
+def decode_stream(text: str) -> np.ndarray:
+    """Inverse of encode_stream (uint16 codes); report.js does the same."""
+    planes = np.frombuffer(zlib.decompress(base64.b64decode(text)), dtype=np.uint8)
+    low, high = planes[:len(planes) // 2].astype(np.uint16), planes[len(planes) // 2:].astype(np.uint16)
+    return np.cumsum(low | (high << 8), dtype=np.uint16)
+
+
+class _Stream:
+    """The codes of one scenario's arrays, one after another: each array
+    is described by {"codes": [start, count], …} and the page decodes the
+    whole stream once."""
+
+    def __init__(self) -> None:
+        self.parts: list[np.ndarray] = []
+        self.size = 0
+
+    def add(self, codes: np.ndarray, **about) -> dict:
+        self.parts.append(codes.view(np.uint16))
+        entry = {"codes": [self.size, len(codes)], **about}
+        self.size += len(codes)
+        return entry
+
+    def linear(self, values: np.ndarray) -> dict:
+        codes, lo, hi = linear_codes(values)
+        return self.add(codes, lin=[lo, hi])
+
+    def log(self, values: np.ndarray) -> dict:
+        codes, lo, hi = log_codes(values)
+        return self.add(codes, log=[lo, hi])
+
+    def samples(self, indices: np.ndarray) -> dict:
+        """Sample indices (sorted) as the gaps between them."""
+        gaps = np.diff(indices, prepend=0)
+        if gaps.max(initial=0) >= 2**16:
+            raise ValueError("display windows wider than 65535 samples")
+        return self.add(gaps.astype(np.uint16), gaps=True)
+
+    def encoded(self) -> str:
+        return encode_stream(np.concatenate(self.parts) if self.parts else np.zeros(0, np.uint16))
+
+
+def colours(labels) -> dict[str, str]:
+    """A colour per run label, in order of first appearance."""
+    return {label: PALETTE[k % len(PALETTE)] for k, label in enumerate(dict.fromkeys(labels))}
+
+
+def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapping[str, Mapping[str, float]],
+                palette: Mapping[str, str]) -> dict:
+    """One scenario's signals for the page's overlay and error figures: the
+    sample instants as [first, last, count], per signal the reference, per
+    run and signal the error against it and the run's bound; arrays as
+    entries of one code stream (see module doc), thinned where long."""
+    stream = _Stream()
+    t = reference.t
+    names = [c for c in reference.frame.columns if c != "t"]
+    signals = []
+    for name in names:
+        keep = _thinned(len(t), reference[name])
+        entry = {"values": stream.linear(reference[name] if keep is None else reference[name][keep])}
+        if keep is not None:
+            entry["samples"] = stream.samples(keep)
+        signals.append({"name": name, "unit": UNITS[SIGNAL_CLASS[name]], "reference": entry})
+    runs = []
+    for label, result in results.items():
+        traces = {}
+        for name in names:
+            if name not in result.frame:
+                continue
+            error = result[name] - reference[name]
+            keep = _thinned(len(t), error, result[name])
+            trace = {"error": stream.log(error if keep is None else error[keep])}
+            if keep is not None:     # the reference is not kept at these samples: send the values too
+                trace["samples"] = stream.samples(keep)
+                trace["values"] = stream.linear(result[name][keep])
+            bound = bounds.get(label, {}).get(name)
+            if bound is not None and np.isfinite(bound):
+                trace["bound"] = float(bound)
+            traces[name] = trace
+        runs.append({"label": label, "colour": palette.get(label, PALETTE[0]), "traces": traces})
+    return {"t": [float(t[0]), float(t[-1]), len(t)], "signals": signals, "runs": runs,
+            "stream": stream.encoded()}
+
+
+def mechanism_figure(mech: Mechanism, t_end: float, instants: int = 4) -> dict:
+    """The linkage to scale at a few instants (a Plotly figure): every body
+    as the polygon of its joint points, ground pivots as triangles, guides
+    as dashed lines."""
     t = np.linspace(0.0, t_end, instants)
     motion = mech.motion(t)
-    fig, ax = plt.subplots(figsize=(6, 4))
-    colours = plt.cm.viridis(np.linspace(0.0, 0.85, instants))
+    traces = []
     for joint in mech.joints:
         if joint.body_i == GROUND and joint.kind == "revolute":
-            ax.plot(*joint.point_i, marker="^", markersize=12, color="0.3")
+            traces.append(dict(x=[joint.point_i[0]], y=[joint.point_i[1]], mode="markers", showlegend=False,
+                               marker=dict(symbol="triangle-up", size=14, color="#555"), hoverinfo="skip"))
         if joint.kind == "prismatic" and joint.body_i == GROUND:
-            ux, uy = rotate(np.array(0.0), joint.axis)
+            ux, uy = (float(v) for v in rotate(np.array(0.0), joint.axis))
             span = max(abs(v) for j in mech.joints for v in j.point_j + j.point_i) * 3 + 0.1
             px, py = joint.point_i
-            ax.plot([px - span * ux, px + span * ux], [py - span * uy, py + span * uy], "--", color="0.6", lw=1)
-    for k, colour in enumerate(colours):
+            traces.append(dict(x=[px - span * ux, px + span * ux], y=[py - span * uy, py + span * uy],
+                               mode="lines", line=dict(dash="dash", color="#999", width=1), showlegend=False,
+                               hoverinfo="skip"))
+    shades = ["#440154", "#31688e", "#35b779", "#b5de2b", "#fde725"]
+    for k in range(instants):
+        name = f"t = {t[k]:.3g} s"
         for body in mech.bodies:
             points = [point_motion(motion, body.name, j.point_j if j.body_j == body.name else j.point_i)
                       for j in mech.joints if body.name in (j.body_i, j.body_j)]
-            xs = [p["x"][k] for p in points]
-            ys = [p["y"][k] for p in points]
-            ax.plot(xs, ys, "-o", color=colour, lw=3 if k == 0 else 1.5, markersize=4,
-                    label=f"t = {t[k]:.3g} s" if body is mech.bodies[0] else None)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="best")
-    return to_png(fig)
+            traces.append(dict(x=[float(p["x"][k]) for p in points], y=[float(p["y"][k]) for p in points],
+                               mode="lines+markers", name=name, legendgroup=name,
+                               showlegend=body is mech.bodies[0], text=[body.name] * len(points),
+                               line=dict(color=shades[k % len(shades)], width=4 if k == 0 else 2),
+                               marker=dict(size=6), hovertemplate="%{text}: (%{x:.4g}, %{y:.4g}) m"))
+    layout = dict(height=360, margin=dict(l=60, r=20, t=20, b=50), xaxis=dict(title=dict(text="x [m]")),
+                  yaxis=dict(title=dict(text="y [m]"), scaleanchor="x", scaleratio=1),
+                  legend=dict(font=dict(size=10)))
+    return {"data": traces, "layout": layout}
 
 
-def _grid(n: int):
-    cols = 3
-    rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(12, 2.4 * rows), squeeze=False, sharex=True)
-    for ax in axes.flat[n:]:
-        ax.set_visible(False)
-    return fig, axes.flat
+@lru_cache(maxsize=1)
+def _plotly_js() -> str:
+    from plotly.offline import get_plotlyjs
+    js = get_plotlyjs()
+    if "</script" in js.lower():     # inlined as it is, so it must not end its own element
+        raise ValueError("plotly.js contains '</script'; it cannot be inlined")
+    return js
 
 
-def signal_overlays(reference: Signals, results: dict[str, Signals]) -> str:
-    """Every compared signal: the reference and each engine over time."""
-    names = [c for c in reference.frame.columns if c != "t"]
-    fig, axes = _grid(len(names))
-    for ax, name in zip(axes, names):
-        ax.plot(reference.t, reference[name], color="black", lw=2.5, label="reference")
-        for label, signals in results.items():
-            if name in signals.frame:
-                ax.plot(signals.t, signals[name], lw=1, label=label)
-        ax.set_title(f"{name} [{UNITS[SIGNAL_CLASS[name]]}]", fontsize=9)
-        ax.tick_params(labelsize=7)
-    axes[0].legend(fontsize=7)
-    return to_png(fig)
-
-
-def error_plots(reference: Signals, results: dict[str, Signals], bounds: dict[str, dict[str, float]]) -> str:
-    """|engine − reference| over time per signal (log scale), with each
-    engine's bound as a dashed line of the same colour."""
-    names = [c for c in reference.frame.columns if c != "t"]
-    fig, axes = _grid(len(names))
-    for ax, name in zip(axes, names):
-        for k, (label, signals) in enumerate(results.items()):
-            if name not in signals.frame:
-                continue
-            colour = f"C{k}"
-            error = np.abs(signals[name] - reference[name])
-            if not np.any(error > 0):      # exact agreement has no place on a log axis
-                continue
-            ax.semilogy(signals.t, np.where(error > 0, error, np.nan), lw=1, color=colour, label=label)
-            bound = bounds.get(label, {}).get(name)
-            if bound:
-                ax.axhline(bound, ls="--", lw=0.8, color=colour)
-        ax.set_title(f"|error| {name}", fontsize=9)
-        ax.tick_params(labelsize=7)
-    legend = {}
-    for ax in axes:
-        for handle, label in zip(*ax.get_legend_handles_labels()):
-            legend.setdefault(label, handle)
-    if legend:      # one legend for the figure: any subplot may lack a line
-        fig.legend(legend.values(), legend.keys(), fontsize=8, loc="upper right")
-    return to_png(fig)
+def page_scripts() -> Markup:
+    """plotly.js and the page's own script, inlined once per page. plotly.js
+    comes as inert text that report.js runs when the first figure is drawn:
+    compiling its ~5 MB would otherwise hold up the opening of the page."""
+    own = (Path(__file__).resolve().parent / "templates" / "report.js").read_text(encoding="utf-8")
+    return Markup(f'<script type="text/plain" id="plotly-js">{_plotly_js()}</script>\n<script>{own}</script>')

@@ -230,6 +230,25 @@ def _tolerance(table: _Reader) -> dict[str, float]:
     return {k: table.number(k, positive=True) for k in table.table}
 
 
+def _engine_tolerance(table: _Reader) -> tuple[dict[str, float], dict[str, str]]:
+    """An [engines.NAME.tolerance] table: per class a bound, either a number
+    or { bound = …, reason = "…" } (the reason is shown beside the bound in
+    reports, so a loosened bound is never silent). Bounds and reasons."""
+    table.only(set(DEFAULT_TOLERANCE))
+    bounds, reasons = {}, {}
+    for cls, value in table.table.items():
+        if isinstance(value, dict):
+            entry = table.sub(cls)
+            entry.only({"bound", "reason"})
+            bounds[cls] = entry.number("bound", positive=True)
+            reasons[cls] = entry.string("reason")
+            if not reasons[cls].strip():
+                entry.fail("reason", "must not be empty (say why this engine needs a different bound)")
+        else:
+            bounds[cls] = table.number(cls, positive=True)
+    return bounds, reasons
+
+
 def _engines(table: _Reader, names: Collection[str] | None) -> dict[str, EngineTable]:
     if names is not None:
         table.only(set(names))
@@ -237,5 +256,5 @@ def _engines(table: _Reader, names: Collection[str] | None) -> dict[str, EngineT
     for engine in table.table:
         sub = table.sub(engine)
         settings = {k: v for k, v in sub.table.items() if k != "tolerance"}
-        engines[engine] = EngineTable(settings, _tolerance(sub.sub("tolerance")))
+        engines[engine] = EngineTable(settings, *_engine_tolerance(sub.sub("tolerance")))
     return engines

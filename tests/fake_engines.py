@@ -82,8 +82,21 @@ class Raising(_Fake):
         raise RuntimeError("solver diverged")
 
 
+class Spiking(_Fake):
+    """The reference with forces 0.1 % high and one sample of A.Fx 50 % high
+    (a spike that fails the force bound)."""
+    name = "spiking"
+
+    def run(self, mechanism, times, settings):
+        raw = raw_reference(mechanism, times)
+        forces = [c for c in raw.columns if c.endswith((".Fx", ".Fy"))]
+        raw[forces] *= 1.001
+        raw.loc[raw.index[len(raw) // 3], "A.Fx"] *= 1.5
+        return RawRun(raw)
+
+
 FAKES = {cls.name: f"fake_engines:{cls.__name__}"
-         for cls in (Faithful, Crashing, Hanging, Busy, NonFinite, Raising)}
+         for cls in (Faithful, Crashing, Hanging, Busy, NonFinite, Raising, Spiking)}
 
 
 if __name__ == "__main__":

@@ -4,9 +4,13 @@ pool and a Dask cluster. The full sweep of fourbar-seed is marked slow."""
 
 from __future__ import annotations
 
+import json
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
+from plotly.offline import get_plotlyjs
 
 from fake_engines import FAKES
 from mechval.harness.cli import main
@@ -85,8 +89,7 @@ def test_dask_cluster_gives_identical_errors(local_table, short_toml, tmp_path, 
     assert status == 0
     printed = capsys.readouterr().out
     assert "Cheapest setting reaching a force+torque error" in printed and "index.html" in printed
-    assert sorted(p.name for p in out.iterdir()) == ["cheapest.csv", "convergence.csv", "cost.csv", "index.html",
-                                                     "work-precision-short-fourbar.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["cheapest.csv", "convergence.csv", "cost.csv", "index.html"]
     csv_text = (out / "cost.csv").read_text()
     assert "nan" not in csv_text.lower() and "inf" not in csv_text.lower()
     remote = pd.read_csv(out / "cost.csv", keep_default_na=False, na_values={"step_s": [""], "error": [""]})
@@ -94,7 +97,12 @@ def test_dask_cluster_gives_identical_errors(local_table, short_toml, tmp_path, 
     # %.17g round-trips float64, so "identical" means equal to the last bit.
     pd.testing.assert_frame_equal(engine_rows(remote), engine_rows(local_table), check_dtype=False,
                                   check_exact=True)
-    assert 'src="data:image/png;base64,' in (out / "index.html").read_text()
+    html = (out / "index.html").read_text()
+    assert html.count(get_plotlyjs()) == 1          # the interactive diagram's library, inlined once
+    figure = json.loads(re.search(r'<script type="application/json" id="cost-s-short-fourbar">(.*?)</script>',
+                                  html, re.S).group(1))
+    names = {trace["name"] for trace in figure["data"]}
+    assert {name.split(" [")[0] for name in names} == set(ENGINES)
 
 
 def test_failures_are_data(monkeypatch, short_toml):
@@ -146,6 +154,8 @@ def test_cost_section_in_the_run_report(local_table, tmp_path, short_toml):
     out = build.write_report(tmp_path / "run", [scene], {scene.name: reference}, [], records, [section])
     html = (out / "index.html").read_text()
     assert 'id="cost"' in html and "work-precision diagram of short-fourbar" in html
+    # the section is HTML, not text shown as HTML source
+    assert '<div class="plot" data-figure="cost-s-short-fourbar"' in html and "&lt;h3&gt;" not in html
 
 
 @pytest.mark.slow

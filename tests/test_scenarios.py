@@ -34,6 +34,23 @@ def test_engine_tolerance_override():
     assert scenario.settings_for("mujoco") == {"timestep": 1e-4}
 
 
+def test_engine_tolerance_override_with_its_reason():
+    """{ bound =, reason = } carries the reason; the plain number stays valid
+    (DESIGN.md) and has none."""
+    reason = "MuJoCo's soft constraints: measured 1.4 % on this scene"
+    scenario = parse(fourbar(engines={"mujoco": {"tolerance": {"force": {"bound": 2e-2, "reason": reason},
+                                                               "torque": 3e-2}}}), "x")
+    assert scenario.tolerance_for("mujoco")["force"] == 2e-2 and scenario.tolerance_for("mujoco")["torque"] == 3e-2
+    assert scenario.engines["mujoco"].reasons == {"force": reason}
+
+
+@pytest.mark.parametrize("name", BUILTIN)
+def test_builtin_tolerance_overrides_state_their_reason(name):
+    scenario = load(name)
+    for engine, table in scenario.engines.items():
+        assert set(table.reasons) == set(table.tolerance), f"{name}: [engines.{engine}.tolerance] without a reason"
+
+
 BAD = [
     (fourbar(geometry={"coupler": 0.2}), "geometry", "cannot close at t = 1.1439 s (θ2 = 1.79815 rad)"),
     (fourbar(geometry={"crank": 0.6}), "geometry.crank", "crank equals ground"),
@@ -69,6 +86,17 @@ BAD = [
     (fourbar(engines={"bullet": {}}), "engines.bullet", "unknown key"),
     (fourbar(engines={"mujoco": {"tolerance": {"force": "big"}}}), "engines.mujoco.tolerance.force",
      "expected a number"),
+    (fourbar(engines={"mujoco": {"tolerance": {"force": {"bound": 2e-2}}}}), "engines.mujoco.tolerance.force.reason",
+     "missing value"),
+    (fourbar(engines={"mujoco": {"tolerance": {"force": {"bound": 2e-2, "reason": " "}}}}),
+     "engines.mujoco.tolerance.force.reason", "must not be empty"),
+    (fourbar(engines={"mujoco": {"tolerance": {"force": {"bound": 2e-2, "reason": 3}}}}),
+     "engines.mujoco.tolerance.force.reason", "expected a string"),
+    (fourbar(engines={"mujoco": {"tolerance": {"force": {"bound": -1.0, "reason": "x"}}}}),
+     "engines.mujoco.tolerance.force.bound", "must be positive"),
+    (fourbar(engines={"mujoco": {"tolerance": {"force": {"value": 2e-2, "reason": "x"}}}}),
+     "engines.mujoco.tolerance.force.value", "unknown key"),
+    (fourbar(tolerance={"force": {"bound": 2e-2, "reason": "x"}}), "tolerance.force", "expected a number"),
     # The crank of this double-crank turns fully; from a triple-rocker's
     # reachable range it cannot: refused at the first instant it leaves it.
     (fourbar(geometry={"ground": 0.6, "crank": 0.5, "coupler": 0.3, "rocker": 0.45}), "geometry",

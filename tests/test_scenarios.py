@@ -36,7 +36,7 @@ def test_engine_tolerance_override():
 
 def test_engine_tolerance_override_with_its_reason():
     """{ bound =, reason = } carries the reason; the plain number stays valid
-    (DESIGN.md) and has none."""
+    (docs/scenario-format.md) and has none."""
     reason = "MuJoCo's soft constraints: measured 1.4 % on this scene"
     scenario = parse(fourbar(engines={"mujoco": {"tolerance": {"force": {"bound": 2e-2, "reason": reason},
                                                                "torque": 3e-2}}}), "x")

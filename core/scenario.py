@@ -15,12 +15,28 @@ import numpy as np
 from .drive import DriveLaw
 
 
+#: Longest key and reason shown in an error message: a key, or a value a
+#: reason quotes, is user input and may be a megabyte long.
+SHOWN_KEY_LENGTH = 60
+SHOWN_REASON_LENGTH = 2000
+
+
+def one_line(text: str, limit: int | None = None) -> str:
+    """`text` safe to print on one line or in one table cell: line breaks
+    and other non-printable characters shown as escapes (\\n, \\x00, …),
+    and cut to `limit` characters with "…" when longer."""
+    shown = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in str(text))
+    return shown if limit is None or len(shown) <= limit else shown[:limit - 1] + "…"
+
+
 class ScenarioError(ValueError):
-    """Bad scenario input: names the file, the key and the reason."""
+    """Bad scenario input: names the file, the key and the reason, on one
+    line (key and reason shortened to SHOWN_KEY/REASON_LENGTH characters)."""
 
     def __init__(self, source: str | Path | None, key: str, reason: str):
-        self.source, self.key, self.reason = str(source or "<scenario>"), key, reason
-        super().__init__(f"{self.source}: {key}: {reason}")
+        self.source, self.key = one_line(source or "<scenario>"), one_line(key, SHOWN_KEY_LENGTH)
+        self.reason = one_line(reason, SHOWN_REASON_LENGTH)
+        super().__init__(f"{self.source}: {self.key}: {self.reason}")
 
     def __reduce__(self):   # raised in worker processes, re-raised in the parent
         return type(self), (self.source, self.key, self.reason)

@@ -167,6 +167,7 @@ def write_folder_atomically(out: str | os.PathLike, fill) -> Path:
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
+        os.chmod(tmp, 0o777 & ~current_umask())     # mkdtemp's 0700, as a plain mkdir would make it
         fill(tmp)
         os.replace(tmp, out)
     except BaseException:
@@ -182,8 +183,16 @@ def write_atomically(path: str | os.PathLike, write) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w", newline="") as f:
+            os.fchmod(fd, 0o666 & ~current_umask())  # mkstemp's 0600, as a plain open would make it
             write(f)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def current_umask() -> int:
+    """The process's umask (reading it means setting it: restored at once)."""
+    mask = os.umask(0o077)
+    os.umask(mask)
+    return mask

@@ -6,6 +6,7 @@ import argparse
 import datetime
 import os
 import sys
+import tempfile
 from pathlib import Path
 
 from tqdm import tqdm
@@ -21,7 +22,7 @@ from mechval.reports.cost_report import cost_section, write_cost_report, write_t
 from mechval.reports.audit import audit_section
 from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
-from mechval.scenario import ScenarioError
+from mechval.scenario import ScenarioError, one_line
 from mechval.scenarios import builtin_names, load
 from mechval.signals import SIGNAL_CLASS
 
@@ -33,6 +34,7 @@ from .executors import DASK_CONNECT_TIMEOUT, LocalExecutor, SchedulerUnreachable
 from .interrupts import Interrupted, stop_on_signals
 from .runner import discrepancies, references_for, run_tasks, tasks_for
 from .simulate import simulate
+from .limits import DEFAULT_MAX_MEMORY, DEFAULT_MAX_STEPS, Limits, check_run
 
 
 class UsageError(Exception):
@@ -72,12 +74,45 @@ def _load(name: str):
     return load(name, engine_names())
 
 
+def _limits(args) -> Limits:
+    return Limits(args.max_steps, args.max_memory * 2**30)
+
+
+def _check_runs(runs, limits: Limits) -> None:
+    """Refuse, before any work, every (scenario, engine, overrides) over the
+    step or memory limit (mechval.limits.check_run)."""
+    for scenario, engine, overrides in runs:
+        check_run(scenario, engine, overrides, limits)
+
+
+def _check_writable(folder: Path, what: Path) -> None:
+    """Refuse, before any work, to run when `what` could not be written into
+    `folder` (or into the folder it would be created in)."""
+    existing = folder.absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    try:
+        if not existing.is_dir():
+            raise NotADirectoryError(20, "not a folder", str(existing))
+        with tempfile.TemporaryFile(dir=existing):      # a real try: permissions, read-only file systems
+            pass
+    except OSError as exc:
+        raise UsageError(f"cannot write {what}: {existing}: {exc.strerror or exc}") from None
+
+
+def _check_out_dir(out: Path) -> None:
+    """A report folder must not exist yet and its parent must take it."""
+    if out.exists() or out.is_symlink():
+        raise UsageError(f"{out} exists; choose another --out or remove it")
+    _check_writable(out.parent, out)
+
+
 def cmd_list(args) -> int:
     print("scenarios:")
     for name in builtin_names():
         s = _load(name)
         tags = f" [{', '.join(s.tags)}]" if s.tags else ""
-        print(f"  {name:<28} {s.mechanism:<13}{tags} {s.description}")
+        print(one_line(f"  {name:<28} {s.mechanism:<13}{tags} {s.description}"))
     print("engines:")
     print(f"  {'reference':<12} available (analytic)")
     for engine, reason in availability().items():
@@ -87,6 +122,10 @@ def cmd_list(args) -> int:
 
 def cmd_simulate(args) -> int:
     scenario = _load(args.scenario)
+    _check_runs([(scenario, args.engine, None)], _limits(args))
+    if args.csv.is_dir():
+        raise UsageError(f"cannot write {args.csv}: it is a folder")
+    _check_writable(args.csv.parent, args.csv)
     signals = simulate(scenario, args.engine)
     unexplained = signals.unexplained_gaps()
     if unexplained:
@@ -156,9 +195,10 @@ def cmd_cost(args) -> int:
         raise UsageError(f"--dask {args.dask!r}: not a Dask scheduler address: {problem}")
     scenarios = [_load(name) for name in args.scenarios]
     engines = _engines(args.engine)
+    _check_runs([(p.scenario, p.engine, p.overrides) for s in scenarios for e in engines
+                 for p in points_for(s, e, args.quick)], _limits(args))
     out = args.out or default_out_dir("cost")
-    if out.exists():
-        raise UsageError(f"{out} exists; choose another --out or remove it")
+    _check_out_dir(out)
     executor = executor_for(args.dask, _workers(args), args.timeout, args.dask_connect_timeout)
     table, orders, cheap = _cost_sweep(scenarios, engines, executor, args.quick, args.repeats, args.quiet)
     write_cost_report(out, table, orders, cheap)
@@ -171,15 +211,20 @@ def cmd_run(args) -> int:
 
     scenarios = _scenarios(args.scenarios, args.skip_hard)
     engines = _engines(args.engine)
-    out = args.out or default_out_dir()
-    if out.exists():
-        raise UsageError(f"{out} exists; choose another --out or remove it")
-    references = references_for(scenarios)
     tasks = tasks_for(scenarios, engines)
+    _check_runs([(t.scenario, t.engine, t.overrides) for t in tasks], _limits(args))
+    if args.cost:
+        from .cost import points_for
+        _check_runs([(p.scenario, p.engine, p.overrides) for s in scenarios for e in engines
+                     for p in points_for(s, e)], _limits(args))
+    out = args.out or default_out_dir()
+    _check_out_dir(out)
+    references = references_for(scenarios)
     with tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
               disable=args.quiet) as bar:
         def done(outcome):
-            bar.set_postfix_str(outcome.task.label + (" FAILED" if outcome.error else ""), refresh=False)
+            bar.set_postfix_str(one_line(outcome.task.label, 80) + (" FAILED" if outcome.error else ""),
+                                refresh=False)
             bar.update()
         outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout,
                              on_done=done)
@@ -218,7 +263,9 @@ def parse_signal_rtol(items: list[str] | None) -> dict[str, float]:
 def cmd_baseline(args) -> int:
     scenarios = _scenarios(args.scenarios, skip_hard=True)
     engines = _engines(args.engine)
+    _check_runs([(t.scenario, t.engine, t.overrides) for t in tasks_for(scenarios, engines)], _limits(args))
     if args.action == "save":
+        _check_writable(args.dir, args.dir)
         return save_command(scenarios, engines, args.dir, args.force, _workers(args))
     return check_command(scenarios, engines, args.dir, args.rtol, parse_signal_rtol(args.signal_rtol),
                          _workers(args))
@@ -242,6 +289,13 @@ def cmd_analyse(args) -> int:
     return 0
 
 
+def _add_limits(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--max-steps", type=_positive_int, default=DEFAULT_MAX_STEPS, metavar="N",
+                        help=f"refuse an engine run of more steps (default {DEFAULT_MAX_STEPS:.0e}; README: Limits)")
+    parser.add_argument("--max-memory", type=_positive, default=DEFAULT_MAX_MEMORY / 2**30, metavar="GIB",
+                        help=f"refuse an engine run estimated to need more GiB (default {DEFAULT_MAX_MEMORY / 2**30:g})")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mechval", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -250,6 +304,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", help="built-in scenario name or path to a .toml file")
     p.add_argument("--engine", default="reference", help="reference|mujoco|pybullet|exudyn")
     p.add_argument("--csv", required=True, type=Path, help="output CSV file")
+    _add_limits(p)
     p.set_defaults(func=cmd_simulate)
     p = sub.add_parser("run", help="compare engines with the reference and write the report")
     p.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="built-in names or .toml paths (default: all)")
@@ -261,6 +316,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="leave out the built-in scenarios tagged 'hard' (long runs, singular neighbourhoods)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--cost", action="store_true", help="add the work-precision sweep (as `mechval cost`; slow)")
+    _add_limits(p)
     p.set_defaults(func=cmd_run)
     p = sub.add_parser("cost", help="work-precision sweep: error against wall time per engine setting")
     p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="built-in names or .toml paths")
@@ -275,6 +331,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=_count, default=0, help="local worker processes (default: one per core)")
     p.add_argument("--timeout", type=_positive, default=900.0, help="seconds before a point is given up")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_limits(p)
     p.set_defaults(func=cmd_cost)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("scenarios", nargs="*", metavar="SCENARIO",
@@ -282,6 +339,7 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("--engine", action="append", help="engine (repeatable; default: all installed)")
     common.add_argument("--dir", required=True, type=Path, help="baseline folder, e.g. baselines/")
     common.add_argument("--workers", type=_count, default=0, help="worker processes (default: one per core)")
+    _add_limits(common)
     p = sub.add_parser("baseline", help="engine regression checks against stored signals per engine version")
     actions = p.add_subparsers(dest="action", required=True)
     q = actions.add_parser("save", parents=[common], help="store baselines (never overwrites without --force)")

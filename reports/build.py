@@ -22,7 +22,7 @@ import mechval
 from mechval.compare import HEALTH_BOUNDS
 from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome
-from mechval.scenario import Scenario
+from mechval.scenario import Scenario, one_line
 from mechval.signals import Signals, write_folder_atomically
 
 from . import plots
@@ -126,22 +126,29 @@ def anchor(name: str) -> str:
     return "s-" + "".join(c if c.isalnum() else "-" for c in name)
 
 
+def md_cell(value) -> str:
+    """Text for one Markdown table cell: on one line, `|` escaped (names
+    and reasons come from users' files and engines' messages)."""
+    return one_line(_fmt(value)).replace("|", "\\|")
+
+
 def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta: dict) -> str:
     matrix = summary_matrix(records, scenarios)
     lines = [f"# mechval discrepancy summary ({meta['date']}, commit {meta['commit']})", "",
              "Worst ratio error / bound per scenario × engine (≤ 1 passes).", "",
-             "| scenario | " + " | ".join(matrix["columns"]) + " |",
+             "| scenario | " + " | ".join(map(md_cell, matrix["columns"])) + " |",
              "|---" * (len(matrix["columns"]) + 1) + "|"]
     for row in matrix["rows"]:
         cells = [c["text"] + (" ✗" if c["css"] == "bad" else "") for c in row["cells"]]
-        lines.append(f"| {row['scenario']} | " + " | ".join(cells) + " |")
+        lines.append(f"| {md_cell(row['scenario'])} | " + " | ".join(cells) + " |")
     failures = records[records["verdict"] == "fail"]
     if not failures.empty:
         lines += ["", "## Out of tolerance", "", "| scenario | engine | setting | signal | max error | ratio | reason |",
                   "|---|---|---|---|---|---|---|"]
         for _, r in failures.iterrows():
-            lines.append(f"| {r['scenario']} | {r['engine']} | {r['setting']} | {r['signal']} | "
-                         f"{_fmt(r['max_error'])} | {_fmt(r['ratio'])} | {r['reason'] or ''} |")
+            lines.append(f"| {md_cell(r['scenario'])} | {md_cell(r['engine'])} | {md_cell(r['setting'])} | "
+                         f"{md_cell(r['signal'])} | {_fmt(r['max_error'])} | {_fmt(r['ratio'])} | "
+                         f"{md_cell(r['reason'] or '')} |")
     return "\n".join(lines) + "\n"
 
 

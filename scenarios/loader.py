@@ -8,6 +8,9 @@ effects, the default tolerances, the engines' own derived settings.
 from __future__ import annotations
 
 import math
+import re
+import reprlib
+import sys
 import tomllib
 from dataclasses import fields
 from pathlib import Path
@@ -17,6 +20,7 @@ import numpy as np
 
 from mechval.drive import DriveLaw
 from mechval.analysis import check_trustworthy
+from mechval.limits import check_scene, shown_int
 from mechval.linkages import LINKAGES
 from mechval.scenario import (DEFAULT_TOLERANCE, EngineTable, LinkMass, Scenario,
                               ScenarioError, TimeGrid, Tolerance)
@@ -48,16 +52,65 @@ def load(name_or_path: str | Path, engines: Collection[str] | None = None) -> Sc
     (`engines`: see `parse`)."""
     text = str(name_or_path)
     path = Path(text)
-    if not path.suffix and not path.exists() and builtin_path(text).exists():
-        path = builtin_path(text)
-    if not path.is_file():
+    try:
+        if not path.suffix and not path.exists() and builtin_path(text).exists():
+            path = builtin_path(text)
+        found = path.is_file()
+    except OSError as exc:              # e.g. a folder on the way that may not be searched
+        raise ScenarioError(text, "file", f"cannot read: {exc.strerror or exc}") from None
+    if not found:
         known = ", ".join(builtin_names())
         raise ScenarioError(text, "file", f"no such scenario file or built-in scenario (built-in: {known})")
+    return parse(read_toml(path), path, engines)
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """The parsed TOML document, or a ScenarioError saying why not."""
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(path, "file", f"cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
         raise ScenarioError(path, "file", f"not valid TOML: {exc}") from None
-    return parse(data, path, engines)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(path, "file", f"not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ScenarioError(path, "file", "tables or arrays nested too deeply to read") from None
+    except ValueError as exc:           # Python reads at most 4300 decimal digits per integer
+        where = _long_integer(text)
+        if where is None:
+            raise ScenarioError(path, "file", f"not valid TOML: {exc}") from None
+        key, digits = where
+        raise ScenarioError(path, key, f"an integer of {digits} digits; its magnitude exceeds "
+                                       f"{MAX_MAGNITUDE:g}") from None
+
+
+def _long_integer(text: str) -> tuple[str, int] | None:
+    """The dotted key (as written, under its [table]) and digit count of the
+    first decimal integer too long for Python to read, or None."""
+    limit = sys.get_int_max_str_digits()
+    table = ""
+    for line in text.splitlines() if limit else ():
+        header = re.match(r"\s*\[+([^\]]*)\]+", line)
+        if header:
+            table = header.group(1).strip()
+        number = re.search(r"[0-9_]{%d,}" % (limit + 1), line)
+        if number:
+            digits = len(number.group(0).replace("_", ""))
+            key = re.match(r"\s*([^=]+?)\s*=", line)
+            return (".".join(filter(None, (table, key.group(1)))) if key else "file"), digits
+    return None
+
+
+def shown(value: Any) -> str:
+    """A value quoted in an error: short, whatever its size or depth."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return shown_int(value)
+    quote = reprlib.Repr()
+    quote.maxlevel, quote.maxstring, quote.maxother, quote.maxlist, quote.maxdict = 3, 60, 60, 4, 4
+    return quote.repr(value)
 
 
 class _Reader:
@@ -82,13 +135,17 @@ class _Reader:
             if default is None:
                 self.fail(name, "missing value")
             return default
-        value = self.table[name]
+        return self.check_number(name, self.table[name], positive, nonnegative)
+
+    def check_number(self, name: str, value: Any, positive=False, nonnegative=False) -> float:
+        """`value` (found under `name`) as a float, if it is an acceptable number."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(name, f"expected a number, got {type(value).__name__} {value!r}")
-        if not math.isfinite(value):
+            self.fail(name, f"expected a number, got {type(value).__name__} {shown(value)}")
+        if isinstance(value, float) and not math.isfinite(value):
             self.fail(name, f"must be finite, got {value}")
-        if abs(value) > MAX_MAGNITUDE:
-            self.fail(name, f"magnitude {value:g} exceeds {MAX_MAGNITUDE:g}: the reference squares and "
+        if abs(value) > MAX_MAGNITUDE:      # exact for integers of any size
+            magnitude = shown_int(value) if isinstance(value, int) else f"{value:g}"
+            self.fail(name, f"magnitude {magnitude} exceeds {MAX_MAGNITUDE:g}: the reference squares and "
                             "multiplies such values beyond float64")
         if positive and value <= 0:
             self.fail(name, f"must be positive, got {value}")
@@ -103,9 +160,9 @@ class _Reader:
             return default
         value = self.table[name]
         if not isinstance(value, str):
-            self.fail(name, f"expected a string, got {type(value).__name__} {value!r}")
+            self.fail(name, f"expected a string, got {type(value).__name__} {shown(value)}")
         if choices and value not in choices:
-            self.fail(name, f"must be one of {', '.join(map(repr, choices))}, got {value!r}")
+            self.fail(name, f"must be one of {', '.join(map(repr, choices))}, got {shown(value)}")
         return value
 
     def sub(self, name: str, required=False) -> "_Reader":
@@ -115,7 +172,7 @@ class _Reader:
             return _Reader(self.source, self.key(name), {})
         value = self.table[name]
         if not isinstance(value, dict):
-            self.fail(name, f"expected a table, got {type(value).__name__} {value!r}")
+            self.fail(name, f"expected a table, got {type(value).__name__} {shown(value)}")
         return _Reader(self.source, self.key(name), value)
 
 
@@ -133,7 +190,7 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
     description = top.string("description", default="")
     tags = data.get("tags", [])
     if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
-        top.fail("tags", f"expected a list of strings, got {tags!r}")
+        top.fail("tags", f"expected a list of strings, got {shown(tags)}")
     for table in REQUIRED_TABLES:
         top.sub(table, required=True)
     module = LINKAGES[kind]
@@ -148,23 +205,29 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
     time_table.only({"end", "samples"})
     samples = time_table.table.get("samples")
     if isinstance(samples, bool) or not isinstance(samples, int):
-        time_table.fail("samples", f"expected a whole number, got {samples!r}" if samples is not None else "missing value")
+        time_table.fail("samples", f"expected a whole number, got {shown(samples)}" if samples is not None else "missing value")
     if samples < 2:
-        time_table.fail("samples", f"must be at least 2, got {samples}")
+        time_table.fail("samples", f"must be at least 2, got {shown_int(samples)}")
     time = TimeGrid(time_table.number("end", positive=True), samples)
     tolerance = Tolerance().updated(_tolerance(top.sub("tolerance")))
     engine_tables = _engines(top.sub("engines"), engines)
-    module.check_closure(module.Geometry(**geometry), drive, _dense_times(time), source)
     scenario = Scenario(name=name, mechanism=kind, description=description, geometry=geometry, mass=mass,
-                    drive=drive, gravity=gravity, damping=damping, time=time, tolerance=tolerance,
-                    engines=engine_tables, tags=tuple(tags), source=Path(source) if source else None)
+                        drive=drive, gravity=gravity, damping=damping, time=time, tolerance=tolerance,
+                        engines=engine_tables, tags=tuple(tags), source=Path(source) if source else None)
+    check_scene(scenario)       # before anything is evaluated at the samples
+    module.check_closure(module.Geometry(**geometry), drive, _dense_times(time), source)
     check_trustworthy(scenario)
     return scenario
 
 
+#: Most points of the dense grid: beyond the samples' own density at the
+#: largest grid (MAX_SAMPLES); 20 per sample would be 160 MB per array there.
+DENSE_MAX = 2_000_001
+
+
 def _dense_times(time: TimeGrid):
     """The samples plus a dense grid, to locate where a loop fails to close."""
-    return np.union1d(time.t, np.linspace(0.0, time.end, max(20 * time.samples, 20001)))
+    return np.union1d(time.t, np.linspace(0.0, time.end, min(max(20 * time.samples, 20001), DENSE_MAX)))
 
 
 def _geometry(table: _Reader, kind: str, module) -> dict[str, Any]:
@@ -215,10 +278,9 @@ def _effects(table: _Reader, module) -> tuple[tuple[float, float] | None, dict[s
     gravity = None
     if "gravity" in table.table:
         value = table.table["gravity"]
-        if (not isinstance(value, list) or len(value) != 2
-                or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in value)):
-            table.fail("gravity", f"expected two finite numbers [gx, gy] in m/s², got {value!r}")
-        gravity = (float(value[0]), float(value[1]))
+        if not isinstance(value, list) or len(value) != 2:
+            table.fail("gravity", f"expected two finite numbers [gx, gy] in m/s², got {shown(value)}")
+        gravity = (table.check_number("gravity[0]", value[0]), table.check_number("gravity[1]", value[1]))
     damping_table = table.sub("damping")
     damping_table.only(set(module.PINS))
     damping = {pin: damping_table.number(pin, nonnegative=True) for pin in module.PINS if pin in damping_table.table}

@@ -1,0 +1,287 @@
+"""Limits (README "Limits"): resource bombs and scenes that cannot be
+simulated meaningfully are refused with the file, the key and how much they
+would take, before any work; output is checked before the engines run."""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import engine_or_skip
+from fake_engines import FAKES
+from mechval import cli, limits
+from mechval.engines import registry
+from mechval.limits import Limits, check_run, run_size
+from mechval.scenario import ScenarioError
+from mechval.scenarios import builtin_path, load, loader, parse
+from scenario_data import fourbar, slider_crank
+
+
+def refused(data, key: str, words: str) -> ScenarioError:
+    with pytest.raises(ScenarioError) as info:
+        parse(data, "bad.toml")
+    assert (info.value.source, info.value.key) == ("bad.toml", key), str(info.value)
+    assert words in info.value.reason, str(info.value)
+    assert "\n" not in str(info.value)
+    return info.value
+
+
+@pytest.fixture
+def nothing_evaluated(monkeypatch):
+    """Fail if the loader evaluates anything at the samples: a refusal of
+    a resource bomb must come first."""
+    def evaluated(*args):
+        raise AssertionError("the loader evaluated the scene before refusing it")
+    monkeypatch.setattr(loader, "_dense_times", evaluated)
+    monkeypatch.setattr(loader, "check_trustworthy", evaluated)
+
+
+@pytest.mark.parametrize("samples", [9223372036854775807, 10**18, 10**7, 10**4000])
+def test_too_many_samples_refused_before_any_array(nothing_evaluated, samples):
+    error = refused(fourbar(time={"samples": samples}), "time.samples", "exceed the limit of 1,000,000")
+    assert "GiB" in error.reason
+
+
+def test_long_integers_and_deep_nesting_in_a_file(tmp_path):
+    """tomllib cannot read a 5000-digit integer (ValueError) nor arrays or
+    tables nested 1000 deep (RecursionError): one-line refusals instead."""
+    seed = builtin_path("fourbar-seed").read_text(encoding="utf-8")
+    checks = [
+        (seed.replace("samples = 601", "samples = " + "9" * 5000), "time.samples", "an integer of 5000 digits"),
+        (seed + "\ndeep = " + "[" * 1000 + "]" * 1000 + "\n", "file", "nested too deeply"),
+        (seed + "\ndeep = " + "{a = " * 1000 + "1" + "}" * 1000 + "\n", "file", "nested too deeply"),
+    ]
+    for text, key, words in checks:
+        path = tmp_path / "deep.toml"
+        path.write_text(text, encoding="utf-8")
+        with pytest.raises(ScenarioError) as info:
+            load(path)
+        assert (info.value.key, words in info.value.reason) == (key, True), str(info.value)
+
+
+@pytest.mark.parametrize("data,key,words", [
+    (fourbar(time={"end": 5e-324}), "time.end", "sample interval"),
+    (fourbar(time={"end": 1e-5, "samples": 101}), "time.end", "below 1e-06 s"),
+    (fourbar(drive={"phi0": 1e15}), "drive.phi0", "resolves it only to 0.12 rad"),
+    (fourbar(drive={"omega0": 1e20}), "drive", "crank angle reaches 6e+20 rad"),
+    # The turning point of a reversing drive is found, not only the ends.
+    (fourbar(drive={"omega0": 2e3, "alpha": -1.0}, time={"end": 3000.0}), "drive", "at t = 2000 s"),
+    (fourbar(mass={"crank": 1e-300}), "mass.crank", "below 1e-09 kg"),
+    (fourbar(mass={"coupler": 2.5e-9}), "mass.coupler", "times lighter than the heaviest"),
+    (fourbar(mass={"coupler": {"mass": 2.0, "izz": 1e-20}}), "mass.coupler", "below 1e-14 kg·m²"),
+    (fourbar(mass={"crank": 1e-9, "coupler": 1e-9, "rocker": {"mass": 1e-9, "com": 0.25, "izz": 5e-15}}),
+     "mass.rocker", "izz = 5e-15"),
+    (fourbar(effects={"gravity": [0.0, 10**400]}), "effects.gravity[1]", "magnitude ~1e400 exceeds"),
+    (fourbar(effects={"gravity": [0.0, float("nan")]}), "effects.gravity[1]", "must be finite"),
+])
+def test_scenes_that_cannot_be_simulated_meaningfully(data, key, words):
+    refused(data, key, words)
+
+
+def test_bounds_leave_the_builtins_and_their_neighbourhood_alone():
+    """The bounds hold with margin for what engines handle (the light and
+    heavy ends measured in README "Limits")."""
+    parse(fourbar(mass={"crank": 1e-9, "coupler": 1e-9, "rocker": 1e-9}), "light.toml")
+    parse(fourbar(mass={"crank": 1e-6, "coupler": 1e3}), "ratio.toml")
+    parse(fourbar(drive={"phi0": -1e6 + 20.0}), "far.toml")
+
+
+def test_mass_that_crashed_mujoco_is_refused_and_the_bound_runs_in_mujoco():
+    """A 1e-300 kg crank crashed MuJoCo's compiler (mass below mjMINVAL);
+    the lightest accepted links run."""
+    refused(fourbar(mass={"crank": 1e-300}), "mass.crank", "MuJoCo refuses")
+    mujoco = engine_or_skip("mujoco")
+    light = parse(fourbar(mass={"crank": 1e-9, "coupler": 1e-9, "rocker": 1e-9}, time={"end": 0.05, "samples": 6}),
+                  "light.toml")
+    assert np.isfinite(mujoco.simulate(light).frame.to_numpy()).all()
+
+
+def test_huge_keys_and_values_are_not_echoed_in_full():
+    key = "k" * 1_000_000
+    error = refused(fourbar(geometry={key: 1.0}), "geometry." + key[:50] + "…", "unknown key")
+    assert len(error.key) == 60 and error.key.endswith("…") and len(str(error)) < 400
+    error = refused(fourbar(mass={"crank": "v" * 1_000_000}), "mass.crank", "expected a number, got str")
+    assert len(str(error)) < 400
+    refused(fourbar(**{"bad\nkey": 1}), "bad\\nkey", "unknown key")
+
+
+def test_one_line():
+    from mechval.scenario import one_line
+    assert one_line("a|b\nc\x00é") == "a|b\\nc\\x00é"
+    assert one_line("x" * 100, 10) == "x" * 9 + "…"
+
+
+def test_unreadable_scenario_is_cannot_read_not_cannot_write(tmp_path, monkeypatch, capsys):
+    path = tmp_path / "locked" / "scene.toml"
+    path.parent.mkdir()
+    path.write_text(builtin_path("fourbar-seed").read_text(encoding="utf-8"), encoding="utf-8")
+
+    def denied(self, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(self))
+    monkeypatch.setattr(Path, "read_text", denied)
+    assert cli.main(["simulate", str(path), "--csv", str(tmp_path / "out.csv")]) == 2
+    assert capsys.readouterr().err == f"mechval: error: {path}: file: cannot read: Permission denied\n"
+    monkeypatch.setattr(Path, "is_file", denied)
+    assert cli.main(["simulate", str(path), "--csv", str(tmp_path / "out.csv")]) == 2
+    assert "file: cannot read: Permission denied" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root reads every file: permissions cannot be tested")
+def test_unreadable_scenario_folder(tmp_path, capsys):
+    folder = tmp_path / "locked"
+    folder.mkdir()
+    (folder / "scene.toml").write_text(builtin_path("fourbar-seed").read_text(encoding="utf-8"))
+    folder.chmod(0)
+    try:
+        assert cli.main(["simulate", str(folder / "scene.toml"), "--csv", str(tmp_path / "o.csv")]) == 2
+    finally:
+        folder.chmod(stat.S_IRWXU)
+    assert "cannot read" in capsys.readouterr().err
+
+
+# --- run size: steps and memory of an engine run ------------------------------------------
+
+def short_150(**time) -> dict:
+    """slider-crank-150 (150 rad/s), as a dict, with another time grid."""
+    import tomllib
+    data = tomllib.loads(builtin_path("slider-crank-150").read_text(encoding="utf-8"))
+    data["time"].update(time)
+    return data
+
+
+@pytest.mark.parametrize("engine", registry.ENGINE_NAMES)
+def test_long_runs_refused_with_the_step_count(engine):
+    """end = 5000 s at 150 rad/s: within the angle bound, but every engine
+    would take over 10⁸ steps (end = 1e7 asked 9.8 TiB or hung)."""
+    engine_or_skip(engine)
+    scene = parse(short_150(end=5000.0, samples=5001), "long.toml")
+    with pytest.raises(ScenarioError) as info:
+        check_run(scene, engine)
+    assert info.value.key == "time.end" and "steps" in info.value.reason and "--max-steps" in info.value.reason
+    assert run_size(scene, "reference", {}).steps == 0
+    check_run(scene, engine, limits=Limits(max_steps=1e9, max_memory=1e12))
+
+
+@pytest.mark.parametrize("engine,setting,value", [
+    ("mujoco", "refine", 10**9), ("pybullet", "preroll_steps", 10**12), ("exudyn", "pre_roll_steps", 10**12),
+    ("exudyn", "timestep", 1e-12)])
+def test_settings_that_multiply_steps_are_named(engine, setting, value):
+    engine_or_skip(engine)
+    data = short_150(end=0.5, samples=1501)
+    if setting == "timestep":       # a step that divides the interval
+        value = (0.5 / 1500) / 10**8
+    data["engines"] = {engine: {setting: value}}
+    with pytest.raises(ScenarioError) as info:
+        check_run(parse(data, "s.toml"), engine)
+    assert info.value.key == f"engines.{engine}.{setting}" and "steps" in info.value.reason
+
+
+def test_step_estimate_matches_the_engines_own_count():
+    """The estimate from the settings is the count each engine reports
+    (PyBullet's includes one step past the last sample, for its readings)."""
+    scene = parse(slider_crank(time={"end": 0.2, "samples": 21}), "count.toml")
+    for engine in registry.ENGINE_NAMES:
+        signals = engine_or_skip(engine).simulate(scene)
+        size = run_size(scene, engine, signals.settings)
+        assert size.steps + (engine == "pybullet") == signals.settings["steps"], engine
+
+
+def test_memory_refused_with_the_estimate():
+    scene = parse(slider_crank(time={"end": 2.0, "samples": 400_001}), "big.toml")
+    with pytest.raises(ScenarioError) as info:
+        check_run(scene, "reference", limits=Limits(max_memory=2**20))
+    assert info.value.key == "time.samples" and "GiB" in info.value.reason and "--max-memory" in info.value.reason
+
+
+@pytest.fixture
+def fakes(monkeypatch):
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+
+
+@pytest.fixture
+def no_engine_work(monkeypatch):
+    """Fail if any engine (or the reference for a report) starts working."""
+    from mechval import cost, runner
+
+    def started(*args, **kwargs):
+        raise AssertionError("engine work started before the refusal")
+    monkeypatch.setattr(runner, "run_tasks", started)
+    monkeypatch.setattr(runner, "references_for", started)
+    monkeypatch.setattr(cost, "sweep", started)
+    monkeypatch.setattr(cli, "simulate", started)
+
+
+def test_cli_refuses_over_max_steps_before_engine_work(fakes, no_engine_work, tmp_path, capsys):
+    scene = tmp_path / "scene.toml"
+    scene.write_text(builtin_path("slider-crank").read_text(encoding="utf-8"), encoding="utf-8")
+    commands = [["simulate", str(scene), "--engine", "faithful", "--csv", str(tmp_path / "x.csv")],
+                ["run", str(scene), "--engine", "faithful", "--out", str(tmp_path / "r"), "--quiet"],
+                ["cost", str(scene), "--engine", "faithful", "--out", str(tmp_path / "c"), "--quiet"],
+                ["baseline", "save", str(scene), "--engine", "faithful", "--dir", str(tmp_path / "b")],
+                ["baseline", "check", str(scene), "--engine", "faithful", "--dir", str(tmp_path / "b")]]
+    for command in commands:
+        assert cli.main(command + ["--max-steps", "1000"]) == 2, command
+        err = capsys.readouterr().err
+        assert err.startswith(f"mechval: error: {scene}: time.end: one faithful run would take ") and \
+            "more than the limit of 1e+03 (--max-steps)" in err and err.count("\n") == 1, err
+        assert cli.main(command + ["--max-memory", "0.0001"]) == 2, command
+        assert "GiB (--max-memory)" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == [scene]
+
+
+def test_output_checked_before_engine_work(fakes, no_engine_work, tmp_path, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    commands = [["simulate", "slider-crank", "--engine", "faithful", "--csv", str(blocker / "x.csv")],
+                ["simulate", "slider-crank", "--engine", "faithful", "--csv", str(tmp_path)],
+                ["run", "slider-crank", "--engine", "faithful", "--out", str(blocker / "r"), "--quiet"],
+                ["run", "slider-crank", "--engine", "faithful", "--out", str(tmp_path), "--quiet"],
+                ["cost", "slider-crank", "--engine", "faithful", "--out", str(blocker / "deeper" / "c")],
+                ["baseline", "save", "slider-crank", "--engine", "faithful", "--dir", str(blocker / "b")]]
+    for command in commands:
+        assert cli.main(command) == 2, command
+        err = capsys.readouterr().err
+        assert ("cannot write" in err or "exists" in err) and err.count("\n") == 1, err
+
+
+# --- output files: permissions and escaping -------------------------------------------------
+
+def test_output_files_follow_the_umask(tmp_path):
+    from mechval.baseline import save
+    from mechval.reference import simulate_reference
+    from mechval.signals import write_folder_atomically
+    signals = simulate_reference(parse(slider_crank(time={"end": 0.1, "samples": 11}), "x.toml"))
+    previous = os.umask(0o022)
+    try:
+        signals.to_csv(tmp_path / "signals.csv")
+        write_folder_atomically(tmp_path / "report", lambda folder: None)
+        save(tmp_path / "baseline" / "default.csv", signals, {"engine": "reference"})
+        os.umask(0o027)
+        signals.to_csv(tmp_path / "private.csv")
+    finally:
+        os.umask(previous)
+    mode = lambda p: stat.S_IMODE(p.stat().st_mode)
+    assert mode(tmp_path / "signals.csv") == 0o644 and mode(tmp_path / "report") == 0o755
+    assert mode(tmp_path / "baseline" / "default.csv") == 0o644
+    assert mode(tmp_path / "baseline" / "default.json") == 0o644
+    assert mode(tmp_path / "private.csv") == 0o640
+
+
+def test_summary_table_escapes_names_and_reasons():
+    from mechval.reports.build import summary_markdown
+    scene = parse(slider_crank(name="a | b\nc", time={"end": 0.1, "samples": 11}), "x.toml")
+    records = pd.DataFrame([dict(scenario=scene.name, engine="fake|engine", setting="default", signal="T12",
+                                 max_error=1.0, ratio=2.0, verdict="fail", reason="off\nby | far", t_max=0.0,
+                                 **{"class": "torque"})])
+    text = summary_markdown(records, [scene], {"date": "today", "commit": "abc"})
+    rows = [line for line in text.splitlines() if line.startswith("|")]
+    cells = lambda line: len(line.replace("\\|", "").split("|"))
+    header, failures = rows[:3], rows[3:]
+    assert {cells(r) for r in header} == {cells(header[0])} and cells(header[0]) == 4
+    assert {cells(r) for r in failures} == {9}
+    assert "a \\| b\\nc" in text and "off\\nby \\| far" in text

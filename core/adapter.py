@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.metadata
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Mapping
@@ -96,6 +97,15 @@ class EngineAdapter(ABC):
     #: scales with the scene); the variants crossed with it (name →
     #: overrides; the one with no overrides is the default).
     step_setting: ClassVar[str] = "timestep"
+    #: Run size (`planned_steps`, checked by the harness against --max-steps
+    #: and --max-memory before any run): the settings that change the step
+    #: count (a refusal names the one the file sets), and the memory model —
+    #: float64 copies of the samples × signals table a run keeps, and bytes
+    #: stored per engine step (measured peaks, rounded up:
+    #: tests/bench/run_size_bench.py prints them).
+    step_settings: ClassVar[tuple[str, ...]] = ("timestep",)
+    output_copies: ClassVar[int] = 32
+    bytes_per_step: ClassVar[int] = 1600
     cost_ladder: ClassVar[tuple[float, ...]] = (0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
 
@@ -148,7 +158,33 @@ class EngineAdapter(ABC):
                 settings[key] = value
         return settings
 
+    def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
+        """(steps per sample interval, steps before t = 0) a run with these
+        settings takes, from the settings alone, as floats (an absurd
+        setting gives inf rather than an overflow). By default: the step
+        setting, shortened to divide the sample interval; no pre-roll."""
+        return steps_per_interval(times, as_float(settings[self.step_setting])), 0.0
+
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         """What the engine model `run` builds holds, read back and set
         against the Mechanism (`mechval.audit`); adapters override this."""
         raise NotImplementedError(f"{self.name}: no model audit")
+
+
+def as_float(value: Any) -> float:
+    """A setting as a float; a value beyond float64 counts as infinite."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
+def ceil_or_inf(value: float) -> float:
+    return math.ceil(value) if math.isfinite(value) else math.inf
+
+
+def steps_per_interval(times: np.ndarray, step: float) -> float:
+    """Whole steps of at most `step` per sample interval (1 for one instant)."""
+    if len(times) < 2:
+        return 1.0
+    return max(1.0, ceil_or_inf(float(times[1] - times[0]) / step - 1e-9))

@@ -1,27 +1,22 @@
-"""What mechval agrees to simulate: scene bounds and run-size limits.
+"""What mechval agrees to simulate: the bounds of a scene.
 
-Two kinds of refusal, both before any work and both naming the file, the key
-and how much the run would take:
+`check_scene` (called by the loader) refuses, before any work and naming the
+file, the key and the reason, a scene float64 or the engines cannot simulate
+meaningfully: too many samples, a sample interval below the engines' useful
+range, a crank angle beyond float64's angular resolution, masses or inertias
+the engines' solvers cannot take. The size of one engine run (steps,
+memory) is the harness's check (`mechval.harness.run_limits`).
 
-- `check_scene` (called by the loader): a scene float64 or the engines
-  cannot simulate meaningfully (too many samples, a sample interval below
-  the engines' useful range, a crank angle beyond float64's angular
-  resolution, masses or inertias the engines' solvers cannot take);
-- `check_run` (called by the command line with the adapter's resolved
-  settings): an engine run whose step count or estimated memory exceeds the
-  limits (`--max-steps`, `--max-memory`).
-
-Every constant below is documented in README.md ("Limits"); the figures
-behind the memory model come from `tests/bench/run_size_bench.py`.
+Every constant below is documented in README.md ("Limits").
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any, Mapping
 
 from .scenario import Scenario, ScenarioError
+from .adapter import as_float
+from .reference import ReferenceAdapter
 from .signals import signal_names
 
 #: Most output instants per scenario. The loader itself evaluates the
@@ -48,22 +43,6 @@ MAX_MASS_RATIO = 1e9
 MIN_MASS = 1e-9
 MIN_INERTIA = 1e-14
 
-#: Default limits of one engine run (overridden by --max-steps, --max-memory).
-#: Measured 11-34 µs per step (up to 100 on a loaded machine): 10⁷ steps
-#: take 2-6 min, up to 17.
-DEFAULT_MAX_STEPS = 10_000_000
-DEFAULT_MAX_MEMORY = 8 * 2**30
-#: Memory model per engine: (copies of the output table, bytes per step).
-#: An engine run keeps `copies` float64 tables of samples × signals, plus
-#: what it stores per step (MuJoCo the rollout's states, PyBullet its step
-#: times, Exudyn every sensor at every step); measured peaks, rounded up.
-MEMORY_MODEL = {"reference": (8, 0), "mujoco": (24, 128), "pybullet": (32, 32), "exudyn": (4, 1600)}
-UNKNOWN_ENGINE_MEMORY = (32, 1600)
-#: Settings that hold a pre-roll (steps before t = 0), per engine, and all
-#: settings that change the step count (named as the key of a refusal).
-PRE_ROLL = {"pybullet": "preroll_steps", "exudyn": "pre_roll_steps"}
-STEP_SETTINGS = {"timestep", "refine", "solref_steps", "preroll_timeconsts", "spectral_radius", *PRE_ROLL.values()}
-
 
 def check_scene(scenario: Scenario) -> None:
     """Refuse a scene that cannot be simulated meaningfully (see the
@@ -72,7 +51,7 @@ def check_scene(scenario: Scenario) -> None:
     samples, end = scenario.time.samples, scenario.time.end
     if samples > MAX_SAMPLES:
         raise fail("time.samples", f"{shown_int(samples)} samples exceed the limit of {MAX_SAMPLES:,} (the "
-                                   f"reference alone would need {_gib(run_size(scenario, 'reference', {}).memory)} GiB)")
+                                   f"reference alone would need {_gib(reference_bytes(scenario))} GiB)")
     interval = end / (samples - 1)
     if not interval >= MIN_SAMPLE_INTERVAL:
         raise fail("time.end", f"the sample interval end / (samples − 1) = {interval:.3g} s is below "
@@ -113,101 +92,10 @@ def _angle_reason(angle: float, when: str) -> str:
             f"float64 resolves it only to {ulp:.2g} rad")
 
 
-@dataclass(frozen=True)
-class Limits:
-    """The limits of one engine run (--max-steps, --max-memory in bytes)."""
-
-    max_steps: float = DEFAULT_MAX_STEPS
-    max_memory: float = DEFAULT_MAX_MEMORY
-
-
-@dataclass(frozen=True)
-class RunSize:
-    """What one engine run would take. Floats, so that an absurd setting
-    gives inf rather than an overflow."""
-
-    engine: str
-    steps: float        # pre-roll included
-    pre_roll: float
-    step: float         # s
-    table_bytes: float  # the output tables (samples × signals)
-    step_bytes: float   # what the engine keeps per step
-
-    @property
-    def memory(self) -> float:
-        return self.table_bytes + self.step_bytes
-
-
-def run_size(scenario: Scenario, engine: str, settings: Mapping[str, Any]) -> RunSize:
-    """The step count and memory of `engine` with its resolved `settings`
-    (`adapter.settings_for`) on the scenario, from the settings alone:
-    dt = timestep / refine (MuJoCo's refine; 1 elsewhere), rounded down to
-    divide the sample interval as every adapter does; plus the engine's
-    pre-roll (`pre_roll_steps`)."""
-    samples = scenario.time.samples
-    copies, per_step = MEMORY_MODEL.get(engine, UNKNOWN_ENGINE_MEMORY)
-    table = _number(samples * len(signal_names(scenario.mechanism)) * 8 * copies)
-    if engine == "reference":
-        return RunSize(engine, 0.0, 0.0, math.nan, table, 0.0)
-    interval = scenario.time.end / (samples - 1)
-    ratio = interval / (_number(settings["timestep"]) / _number(settings.get("refine", 1)))
-    per_sample = max(1, _ceil(ratio - 1e-9))
-    pre_roll = pre_roll_steps(engine, settings)
-    steps = pre_roll + (samples - 1) * per_sample
-    return RunSize(engine, steps, pre_roll, interval / per_sample, table, steps * per_step)
-
-
-def pre_roll_steps(engine: str, settings: Mapping[str, Any]) -> float:
-    """Steps an engine takes before t = 0 (an upper bound: MuJoCo halves its
-    pre-roll where the reference cannot give a state that early)."""
-    if engine == "mujoco":
-        return _ceil(_number(settings["preroll_timeconsts"]) * _number(settings["solref_steps"]))
-    steps = _number(settings.get(PRE_ROLL.get(engine, ""), 0))
-    rho = settings.get("spectral_radius")
-    if engine == "exudyn" and settings.get("solver") == "index3" and isinstance(rho, float) and 0 <= rho < 1:
-        from mechval.engines.exudyn import index3_transient_steps
-        steps = max(steps, index3_transient_steps(rho))
-    return steps
-
-
-def check_run(scenario: Scenario, engine: str, overrides: Mapping[str, Any] | None = None,
-              limits: Limits = Limits()) -> RunSize:
-    """Refuse an engine run over the step or memory limit, saying what it
-    would take; `overrides` as for `adapter.simulate`. The key named is the
-    file's step setting if it has one, else time.end (steps) or
-    time.samples (memory of the output tables)."""
-    if engine == "reference":
-        size = run_size(scenario, engine, {})
-    else:
-        from mechval.engines.registry import adapter
-        from .linkages import build_mechanism
-        size = run_size(scenario, engine, adapter(engine).settings_for(scenario, build_mechanism(scenario), overrides))
-    in_file = sorted(set(scenario.settings_for(engine)) & STEP_SETTINGS)
-    step_key = f"engines.{engine}.{in_file[0]}" if in_file else "time.end"
-    if size.steps > limits.max_steps:
-        raise ScenarioError(scenario.source, step_key,
-                            f"one {engine} run would take {size.steps:.3g} steps ({size.pre_roll:.3g} pre-roll, then "
-                            f"steps of {size.step:.3g} s up to t = {scenario.time.end:g} s), more than the limit of "
-                            f"{limits.max_steps:.3g} (--max-steps)")
-    if size.memory > limits.max_memory:
-        key = step_key if size.step_bytes > size.table_bytes else "time.samples"
-        raise ScenarioError(scenario.source, key,
-                            f"one {engine} run would need about {_gib(size.memory)} GiB ({scenario.time.samples:,} "
-                            f"samples, {size.steps:.3g} steps), more than the limit of {_gib(limits.max_memory)} GiB "
-                            "(--max-memory)")
-    return size
-
-
-def _number(value: Any) -> float:
-    """A setting as a float; a value beyond float64 counts as infinite."""
-    try:
-        return float(value)
-    except OverflowError:
-        return math.inf
-
-
-def _ceil(value: float) -> float:
-    return math.ceil(value) if math.isfinite(value) else math.inf
+def reference_bytes(scenario: Scenario) -> float:
+    """The reference's output tables at the scenario's samples (bytes)."""
+    return (as_float(scenario.time.samples) * len(signal_names(scenario.mechanism)) * 8
+            * ReferenceAdapter.output_copies)
 
 
 def _gib(size: float) -> str:

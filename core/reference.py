@@ -58,6 +58,9 @@ class ReferenceAdapter(EngineAdapter):
     distribution = "mechval"
     settings_spec: Mapping = {}
     step_setting = ""
+    step_settings = ()
+    output_copies = 8
+    bytes_per_step = 0
 
     @classmethod
     def version(cls) -> str:
@@ -65,6 +68,9 @@ class ReferenceAdapter(EngineAdapter):
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
         return {}
+
+    def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
+        return 0.0, 0.0
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         return RawRun(raw_reference(mechanism, times), info=RunInfo(facts={"method": METHOD}))

@@ -40,6 +40,8 @@ import pandas as pd
 
 from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Joint, Mechanism, point_motion, rotate
 
+from mechval.adapter import as_float, steps_per_interval
+
 from .base import EngineAdapter, RawRun, RunInfo, default_step
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
@@ -90,6 +92,17 @@ class ExudynAdapter(EngineAdapter):
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}, "index3": {"solver": "index3"}}
     #: Both solvers for `mechval cost` (the ladder sets `timestep`).
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"index2": {}, "index3": {"solver": "index3"}}
+
+    step_settings = ("timestep", "pre_roll_steps", "spectral_radius")
+    output_copies, bytes_per_step = 4, 1600       # every sensor at every step
+
+    def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
+        """The pre-roll covers index-3's start-up transient (`prepare`)."""
+        pre_roll = as_float(settings["pre_roll_steps"])
+        rho = settings["spectral_radius"]
+        if settings["solver"] == "index3" and 0.0 <= rho < 1.0:
+            pre_roll = max(pre_roll, index3_transient_steps(rho))
+        return steps_per_interval(times, as_float(settings["timestep"])), pre_roll
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
         """Step from the scenario's motion (`default_step`); each deliberate

@@ -67,6 +67,7 @@ import numpy as np
 import pandas as pd
 from mujoco import rollout
 
+from mechval.adapter import as_float, ceil_or_inf, steps_per_interval
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism, rotate
@@ -118,6 +119,17 @@ class MujocoAdapter(EngineAdapter):
         "RK4": {}, "RK4 solref 20dt": {"solref_steps": 20.0},
         "Euler": {"integrator": "Euler", "solref_steps": 2.0, "drive_solref_steps": 2.0},
         "implicitfast": {"integrator": "implicitfast", "solref_steps": 2.0, "drive_solref_steps": 2.0}}
+
+    step_settings = ("timestep", "refine", "solref_steps", "preroll_timeconsts")
+    output_copies, bytes_per_step = 24, 128       # the rollout keeps every state
+
+    def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
+        """MuJoCo steps timestep / refine; the pre-roll lasts preroll_timeconsts
+        of the loop's solref time constant (solref_steps steps): an upper
+        bound, halved where the reference cannot give a state that early."""
+        step = as_float(settings["timestep"]) / as_float(settings["refine"])
+        preroll = ceil_or_inf(as_float(settings["preroll_timeconsts"]) * as_float(settings["solref_steps"]))
+        return steps_per_interval(times, step), preroll
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
         """RK4 at the shared step rule (`timestep`: 0.01 rad per step of the

@@ -48,6 +48,8 @@ import numpy as np
 import pandas as pd
 from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism, rotate
 
+from mechval.adapter import as_float, steps_per_interval
+
 from .base import EngineAdapter, RawRun, RunInfo, default_step
 from .pybullet_model import NO_CAP, Model, build, p   # p: pybullet, imported quietly there
 from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_slides, slide_reaction
@@ -76,6 +78,12 @@ class PybulletAdapter(EngineAdapter):
     #: `mechval cost` has one line here: the solver is not a setting (Dantzig
     #: LCP, exact; the iterative ones stop early, docs/engines.md).
     cost_variants = {"Dantzig": {}}
+
+    step_settings = ("timestep", "preroll_steps")
+    output_copies, bytes_per_step = 32, 32
+
+    def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
+        return steps_per_interval(times, as_float(settings["timestep"])), as_float(settings["preroll_steps"])
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
         return {

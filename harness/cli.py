@@ -29,12 +29,12 @@ from mechval.signals import SIGNAL_CLASS
 from .audit_run import audit_all, audit_scenario
 from .baseline import UnsafeName
 from .baseline_run import BaselinesExist, check_command, save_command
-from .cost import sweep
+from .cost import points_for, sweep
 from .executors import DASK_CONNECT_TIMEOUT, LocalExecutor, SchedulerUnreachable, dask_address_problem, executor_for
 from .interrupts import Interrupted, stop_on_signals
 from .runner import discrepancies, references_for, run_tasks, tasks_for
 from .simulate import simulate
-from .limits import DEFAULT_MAX_MEMORY, DEFAULT_MAX_STEPS, Limits, check_run
+from .run_limits import DEFAULT_MAX_MEMORY, DEFAULT_MAX_STEPS, Limits, check_run
 
 
 class UsageError(Exception):
@@ -80,7 +80,7 @@ def _limits(args) -> Limits:
 
 def _check_runs(runs, limits: Limits) -> None:
     """Refuse, before any work, every (scenario, engine, overrides) over the
-    step or memory limit (mechval.limits.check_run)."""
+    step or memory limit (mechval.harness.run_limits.check_run)."""
     for scenario, engine, overrides in runs:
         check_run(scenario, engine, overrides, limits)
 
@@ -208,13 +208,11 @@ def cmd_cost(args) -> int:
 
 
 def cmd_run(args) -> int:
-
     scenarios = _scenarios(args.scenarios, args.skip_hard)
     engines = _engines(args.engine)
     tasks = tasks_for(scenarios, engines)
     _check_runs([(t.scenario, t.engine, t.overrides) for t in tasks], _limits(args))
     if args.cost:
-        from .cost import points_for
         _check_runs([(p.scenario, p.engine, p.overrides) for s in scenarios for e in engines
                      for p in points_for(s, e)], _limits(args))
     out = args.out or default_out_dir()
@@ -293,7 +291,7 @@ def _add_limits(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-steps", type=_positive_int, default=DEFAULT_MAX_STEPS, metavar="N",
                         help=f"refuse an engine run of more steps (default {DEFAULT_MAX_STEPS:.0e}; README: Limits)")
     parser.add_argument("--max-memory", type=_positive, default=DEFAULT_MAX_MEMORY / 2**30, metavar="GIB",
-                        help=f"refuse an engine run estimated to need more GiB (default {DEFAULT_MAX_MEMORY / 2**30:g})")
+                        help=f"refuse an engine run estimated to need more GiB (default: 3/4 of this machine, {DEFAULT_MAX_MEMORY / 2**30:.3g})")
 
 
 def build_parser() -> argparse.ArgumentParser:

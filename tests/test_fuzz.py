@@ -22,7 +22,7 @@ import pandas as pd
 import pytest
 
 from conftest import BUILTIN, engine_or_skip
-from mechval.cli import main
+from mechval.harness.cli import main
 from mechval.engines.registry import ENGINE_NAMES
 from mechval.scenarios import builtin_path
 from mechval.signals import SIGNAL_CLASS

@@ -1,4 +1,4 @@
-"""Measure the memory model of `mechval.limits` (MEMORY_MODEL) and the time
+"""Measure the memory model each adapter declares (`output_copies`, `bytes_per_step`) and the time
 per step behind DEFAULT_MAX_STEPS: per engine, the peak resident memory of
 one run in a fresh process at three sizes of fourbar-seed (constant
 10 rad/s): few samples and steps, ten times the steps, many samples.
@@ -6,7 +6,7 @@ one run in a fresh process at three sizes of fourbar-seed (constant
     .venv/bin/python tests/bench/run_size_bench.py [--engine NAME ...]
 
 Prints bytes per step, copies of the output table (samples × signals ×
-8 B) and seconds per step, next to the values limits.py uses.
+8 B) and seconds per step, next to the values the adapters declare.
 """
 
 from __future__ import annotations
@@ -24,22 +24,19 @@ import dataclasses, json, resource, sys, time
 from mechval.drive import DriveLaw
 from mechval.scenario import TimeGrid
 from mechval.scenarios import load
+from mechval.harness.simulate import simulate
 engine, end, samples = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
 scene = dataclasses.replace(load("fourbar-seed"), time=TimeGrid(end, samples), drive=DriveLaw(0.0, 10.0, 0.0))
-if engine == "reference":
-    from mechval.reference import simulate_reference
-    run = lambda: simulate_reference(scene)
-else:
-    from mechval.engines.registry import adapter
-    engine_adapter = adapter(engine)
-    run = lambda: engine_adapter.simulate(scene)
+from mechval.engines.registry import adapter
+engine_adapter = adapter(engine)
+run = lambda: simulate(scene, engine_adapter)
 before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 start = time.perf_counter()
 signals = run()
 wall = time.perf_counter() - start
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 print(json.dumps({"peak": peak * 1024, "before": before * 1024, "wall": wall, "columns": signals.frame.shape[1],
-                  "steps": signals.settings.get("steps", 0)}))
+                  "steps": signals.info.steps or 0}))
 """
 
 
@@ -50,7 +47,7 @@ def measure(engine: str, end: float, samples: int) -> dict:
 
 
 def main() -> None:
-    from mechval.limits import MEMORY_MODEL
+    from mechval.engines.registry import adapter
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--engine", action="append", help="engine (repeatable; default: reference and all three)")
     engines = parser.parse_args().engine or ["reference", "mujoco", "pybullet", "exudyn"]
@@ -62,7 +59,7 @@ def main() -> None:
         table = (dense["peak"] - base["peak"] - per_step * (dense["steps"] - base["steps"]))
         copies = table / ((DENSE - 601) * dense["columns"] * 8)
         us_per_step = 1e6 * long["wall"] / long["steps"] if long["steps"] else float("nan")
-        model_copies, model_step = MEMORY_MODEL[engine]
+        model_copies, model_step = adapter(engine).output_copies, adapter(engine).bytes_per_step
         print(f"{engine:<10} {per_step:8.0f} {model_step:6d} {copies:7.1f} {model_copies:6d} {us_per_step:8.1f}")
 
 

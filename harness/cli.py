@@ -126,7 +126,13 @@ def cmd_simulate(args) -> int:
     if args.csv.is_dir():
         raise UsageError(f"cannot write {args.csv}: it is a folder")
     _check_writable(args.csv.parent, args.csv)
-    signals = simulate(scenario, args.engine)
+    try:
+        signals = simulate(scenario, args.engine)
+    except (ScenarioError, EngineUnavailable, UnknownEngine, KeyboardInterrupt):
+        raise
+    except Exception as exc:    # the engine's own failure (a solver that gives up): one line, exit 1
+        raise EngineFailure(f"{args.engine} on {scenario.source or scenario.name}: {type(exc).__name__}: "
+                            f"{one_line(str(exc))}; nothing written to {args.csv}") from None
     unexplained = signals.unexplained_gaps()
     if unexplained:
         # An engine that blew up must not leave a CSV that looks like data.

@@ -82,6 +82,21 @@ def test_simulate_refuses_to_write_an_engine_blow_up(tmp_path, monkeypatch):
     assert not csv.exists()
 
 
+def test_simulate_reports_an_engine_error_on_one_line(tmp_path, monkeypatch, capsys):
+    """An engine that raises (a solver giving up, as Exudyn's SolverError on
+    a 10¹⁸ m conrod) is an engine failure: exit 1, one line, no CSV, no
+    traceback."""
+    from fake_engines import FAKES
+    from mechval.harness import cli
+    from mechval.engines import registry
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    csv = tmp_path / "out.csv"
+    assert cli.main(["simulate", "slider-crank", "--engine", "raising", "--csv", str(csv)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "engine failed: raising on" in err and "RuntimeError: solver diverged" in err
+    assert not csv.exists()
+
+
 def short_scene(tmp_path, extra: str = "") -> Path:
     path = tmp_path / "short.toml"
     text = builtin_path("slider-crank").read_text(encoding="utf-8")

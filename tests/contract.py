@@ -11,6 +11,8 @@ stays short: a few hundred samples at most.
 Expected values are independent of the engine: signs from physics stated
 in each test (power balance, statics), the rest from the analytic
 reference, which passes the same contract (tests/test_reference_contract.py).
+An adapter without a time step or without a model to audit says why in a
+class attribute, and the tests that need one skip with that reason.
 """
 
 from __future__ import annotations
@@ -21,12 +23,13 @@ import numpy as np
 import pytest
 
 from conftest import engine_or_skip
-from mechval.compare import compare
+from mechval.audit import failures, format_audit
+from mechval.compare import HEALTH_BOUNDS, compare
 from mechval.linkages import build_mechanism
 from mechval.reference import simulate_reference
 from mechval.scenario import ScenarioError
 from mechval.scenarios import parse
-from mechval.signals import signal_names
+from mechval.signals import canonical_signals, signal_names
 from mechval.harness.simulate import simulate
 from scenario_data import fourbar, slider_crank
 
@@ -42,6 +45,12 @@ MOVING_SLIDE = {
     "time": {"end": 0.5, "samples": 101},
 }
 CLOSED_LOOP = fourbar(time={"end": 1.0, "samples": 101}, name="contract-fourbar")
+#: The closed loop with nothing but the drive acting, and with gravity and a
+#: damper at every pin (the loop-closing one included).
+FREE_LOOP = fourbar(effects=None, time={"end": 1.0, "samples": 101}, name="contract-fourbar-free")
+DAMPED_LOOP = fourbar(effects={"gravity": [0.0, -G], "damping": {"O2": 0.5, "A": 0.2, "B": 0.3, "O4": 0.4}},
+                      time={"end": 1.0, "samples": 101}, name="contract-fourbar-damped")
+MECHANISMS = pytest.mark.parametrize("data", [CLOSED_LOOP, MOVING_SLIDE], ids=["closed-loop", "moving-slide"])
 
 
 @pytest.mark.engine
@@ -49,10 +58,24 @@ class AdapterContract:
     """What every adapter promises (docs/adapters.md)."""
 
     engine: ClassVar[str]
+    #: Why the adapter has no time-step setting ("" when it has one, named
+    #: by its `step_setting`): the tests of the step skip with this reason.
+    without_time_step: ClassVar[str] = ""
+    #: Why the adapter builds no engine model to audit ("" when `audit` reads
+    #: its model back): the audit test skips with this reason.
+    without_model_audit: ClassVar[str] = ""
 
     @pytest.fixture
     def adapter(self):
         return engine_or_skip(self.engine)
+
+    def skip_without_time_step(self, adapter) -> None:
+        """Skip with the stated reason if the adapter has no time step (and
+        check that it indeed declares none)."""
+        if self.without_time_step:
+            assert not adapter.step_setting, f"{self.engine} declares step_setting {adapter.step_setting!r}"
+            pytest.skip(self.without_time_step)
+        assert adapter.step_setting in adapter.settings_spec
 
     def simulate(self, adapter, data: dict, **overrides):
         return simulate(parse(data, f"{data['name']}.toml"), adapter, overrides or None)
@@ -62,11 +85,16 @@ class AdapterContract:
     def test_ground_carries_the_weight(self, adapter):
         """Statics, independent of any reference: a slider-crank held still
         under gravity −y; the ground's vertical forces on the crank (F12y)
-        and on the slider (F14y) carry the whole weight, upwards."""
-        data = slider_crank(drive={"phi0": 1.0, "omega0": 0.0, "alpha": 0.0}, time={"end": 0.1, "samples": 11})
-        result = self.simulate(adapter, data)
-        weight = G * sum(data["mass"].values())
-        np.testing.assert_allclose(result["F12y"] + result["F14y"], weight, rtol=1e-6)
+        and on the slider (F14y) carry the whole weight, upwards. Under
+        gravity +y they pull down, and the holding torque T12 turns round."""
+        still = dict(drive={"phi0": 1.0, "omega0": 0.0, "alpha": 0.0}, time={"end": 0.1, "samples": 11})
+        down = slider_crank(**still)
+        up = slider_crank(**still, effects={"gravity": [0.0, G]})
+        weight = G * sum(down["mass"].values())
+        held_down, held_up = self.simulate(adapter, down), self.simulate(adapter, up)
+        np.testing.assert_allclose(held_down["F12y"] + held_down["F14y"], weight, rtol=1e-6)
+        np.testing.assert_allclose(held_up["F12y"] + held_up["F14y"], -weight, rtol=1e-6)
+        assert np.all(np.sign(held_up["T12"]) == -np.sign(held_down["T12"])) and np.all(held_down["T12"] != 0)
 
     def test_drive_torque_does_the_work(self, adapter):
         """Power balance: spun up from rest with no gravity and no damper,
@@ -81,45 +109,85 @@ class AdapterContract:
 
     # -- signals, missing values, provenance --------------------------------
 
-    def test_canonical_columns_and_missing_values_have_reasons(self, adapter):
-        result = self.simulate(adapter, CLOSED_LOOP)
-        assert tuple(result.frame.columns) == signal_names("fourbar")
+    @MECHANISMS
+    def test_canonical_columns_and_missing_values_have_reasons(self, adapter, data):
+        """Every canonical signal of the kind, in order; a value the engine
+        cannot give is NaN with a stated reason (e.g. a slide's couple), and
+        no other value is NaN."""
+        result = self.simulate(adapter, data)
+        assert tuple(result.frame.columns) == signal_names(data["mechanism"])
         assert result.source == self.engine and result.version
         assert not result.unexplained_gaps()
         for name, reason in result.missing.items():
             assert name in result.frame.columns and reason.strip(), name
 
-    def test_a_single_instant(self, adapter):
-        """The reference state itself at one instant, with finite values
-        or stated gaps."""
-        scenario = parse(CLOSED_LOOP, "one.toml")
+    @MECHANISMS
+    def test_a_single_instant(self, adapter, data):
+        """A run of one instant (no sample interval) gives the reference
+        state at that instant: finite values or stated gaps, each within the
+        bound the comparison rule sets for the whole run."""
+        scenario = parse(data, "one.toml")
         mechanism = build_mechanism(scenario)
         settings = adapter.settings_for(scenario, mechanism)
         raw = adapter.run(mechanism, scenario.time.t[:1], settings)
         assert len(raw.frame) == 1
         finite = np.isfinite(raw.frame.to_numpy(dtype=float))
         assert all(finite[:, k].all() or column in raw.missing for k, column in enumerate(raw.frame.columns))
+        # The bounds: the reference compared with itself over the whole run.
+        reference = simulate_reference(scenario)
+        bounds = compare(reference, reference, scenario.tolerance_for(self.engine)).set_index("signal")["bound"]
+        result = canonical_signals(mechanism, raw.frame, self.engine, missing=raw.missing)
+        errors = {name: abs(result[name][0] - reference[name][0]) for name in signal_names(data["mechanism"])[1:]
+                  if name not in result.missing}
+        assert {name: error for name, error in errors.items() if not error <= bounds[name]} == {}
 
     # -- settings -----------------------------------------------------------
 
-    def test_settings_are_recorded_and_overridable(self, adapter):
+    def test_settings_are_declared_and_recorded(self, adapter):
+        """The derived defaults hold exactly the declared settings, and a
+        run records every one of them."""
+        scenario = parse(CLOSED_LOOP, "s.toml")
+        defaults = adapter.settings_for(scenario, build_mechanism(scenario))
+        assert set(defaults) == set(adapter.settings_spec)
+        result = self.simulate(adapter, CLOSED_LOOP)
+        assert dict(result.settings) == defaults
+
+    def test_the_step_is_overridable(self, adapter):
+        """Half the default step, as an override: recorded, and used (an
+        adapter that ignored it would give the default run's numbers)."""
+        self.skip_without_time_step(adapter)
         scenario = parse(CLOSED_LOOP, "s.toml")
         defaults = adapter.settings_for(scenario, build_mechanism(scenario))
         step = adapter.step_setting
         interval = float(scenario.time.t[1] - scenario.time.t[0])
         finer = interval / (round(interval / defaults[step]) * 2)
         result = self.simulate(adapter, CLOSED_LOOP, **{step: finer})
-        assert result.settings[step] == finer
-        for key in defaults:
-            assert key in result.settings, key
+        assert dict(result.settings) == {**defaults, step: finer}
+        assert not np.array_equal(result.frame.to_numpy(), self.simulate(adapter, CLOSED_LOOP).frame.to_numpy())
 
-    @pytest.mark.parametrize("key, value, reason", [
-        ("no_such_setting", 1.0, "unknown setting"),
-        (None, "text", "expected"),        # the step setting, given a string
-        (None, -1e-3, "positive"),
+    @pytest.mark.parametrize("origin", ["file", "override"])
+    def test_an_unknown_setting_is_refused_with_its_origin_and_key(self, adapter, origin):
+        """In the scenario file: the file and `engines.NAME.KEY`; as an
+        explicit override (variants, the cost ladder): 'settings override'."""
+        with pytest.raises(ScenarioError) as info:
+            if origin == "file":
+                self.simulate(adapter, {**CLOSED_LOOP, "engines": {self.engine: {"no_such_setting": 1.0}}})
+            else:
+                self.simulate(adapter, CLOSED_LOOP, no_such_setting=1.0)
+        assert info.value.key == f"engines.{self.engine}.no_such_setting"
+        assert "unknown setting" in info.value.reason
+        assert info.value.source == ("contract-fourbar.toml" if origin == "file" else "settings override")
+
+    @pytest.mark.parametrize("value, reason", [
+        ("text", "expected"),
+        (-1e-3, "positive"),
+        (0.0, "positive"),
+        (float("nan"), "finite"),
+        (3e-3, "does not divide the sample interval"),     # the interval is 0.01 s
     ])
-    def test_bad_settings_are_refused_with_file_and_key(self, adapter, key, value, reason):
-        key = key or adapter.step_setting
+    def test_a_bad_step_is_refused_with_file_and_key(self, adapter, value, reason):
+        self.skip_without_time_step(adapter)
+        key = adapter.step_setting
         data = {**CLOSED_LOOP, "engines": {self.engine: {key: value}}}
         with pytest.raises(ScenarioError) as info:
             self.simulate(adapter, data)
@@ -135,3 +203,32 @@ class AdapterContract:
                           scenario.tolerance_for(self.engine), scenario.name, self.engine)
         failed = records[records["verdict"] == "fail"]
         assert failed.empty, failed[["signal", "max_error", "bound", "reason"]].to_string()
+
+    # -- no unrequested effects ------------------------------------------------
+
+    @pytest.mark.parametrize("data", [FREE_LOOP, DAMPED_LOOP], ids=["free", "gravity-and-dampers"])
+    def test_the_model_holds_only_the_scene(self, adapter, data):
+        """The compiled-model audit (`mechval.audit`): every mass, point,
+        damper, the drive and gravity as the scene says, and no contact,
+        limit, motor, body damping or other effect it does not ask for."""
+        scenario = parse(data, f"{data['name']}.toml")
+        mechanism = build_mechanism(scenario)
+        settings = adapter.settings_for(scenario, mechanism)
+        if self.without_model_audit:
+            with pytest.raises(NotImplementedError):       # and it indeed has none
+                adapter.audit(mechanism, scenario.time.t, settings)
+            pytest.skip(self.without_model_audit)
+        table = adapter.audit(mechanism, scenario.time.t, settings)
+        assert failures(table).empty, "\n" + format_audit(failures(table))
+
+    def test_power_balances_with_nothing_but_the_drive(self, adapter):
+        """With no gravity and no damper, the drive's power is the rate of
+        kinetic energy (health `power_residual`, from the engine's own
+        motion and torque). An effect the scene does not ask for (a hidden
+        damper, body damping, a joint motor) breaks the balance. Bound: the
+        one the comparison rule holds the residual to (`HEALTH_BOUNDS`)."""
+        scenario = parse(FREE_LOOP, "free.toml")
+        result = simulate(scenario, adapter)
+        bound = scenario.tolerance_for(self.engine)[HEALTH_BOUNDS["power_residual"]]
+        assert float(np.max(result.health["power_residual"])) <= bound
+

@@ -1,16 +1,24 @@
 """The documentation in docs/ cannot rot: its scenario examples load, its
-tables of signals, tolerances and engine settings match the code, its links
-resolve, and nothing in the repository points to files outside it."""
+tables of signals, tolerances and engine settings match the code, every
+command is listed, the layers it states hold in the imports, its plug-in
+example installs and passes the adapter contract, its links resolve, and
+nothing in the repository points to files outside it."""
 
 from __future__ import annotations
 
+import argparse
+import ast
+import os
 import re
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
 import pytest
 
 from conftest import engine_or_skip
+from mechval.harness.cli import build_parser
 from mechval.engines.registry import ENGINE_NAMES
 from mechval.linkages import LINKAGES, build_mechanism
 from mechval.reference import simulate_reference
@@ -114,6 +122,92 @@ def test_every_engine_setting_is_documented(engine_name):
     assert keys <= settings_rows, keys - settings_rows
     summary = {r[0].strip("`"): r[1] for r in table_rows(section("scenario-format.md", "`[engines.NAME]`"))}
     assert set(re.findall(r"`(\w+)`", summary[f"`{engine_name}`".strip("`")])) == keys
+
+
+def subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    """The parser's sub-commands by name."""
+    actions = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return dict(actions[0].choices) if actions else {}
+
+
+def test_every_command_is_listed_in_the_docs_index():
+    """docs/README.md lists every `mechval` command (and every action of a
+    command that has them, e.g. `baseline save|check`)."""
+    text = (DOCS / "README.md").read_text(encoding="utf-8")
+    for name, command in subcommands(build_parser()).items():
+        assert f"mechval {name}" in text, name
+        for action in subcommands(command):
+            assert re.search(rf"mechval {name} \S*\b{action}\b", text), f"{name} {action}"
+
+
+#: Folder → the package it is installed as.
+LAYER_PACKAGES = {"core": "mechval", "scenarios": "mechval.scenarios", "engines": "mechval.engines",
+                  "reports": "mechval.reports", "harness": "mechval.harness"}
+
+
+def layer_of(module: str) -> str | None:
+    """The folder (layer) of an imported mechval module, None if not mechval."""
+    for folder, package in LAYER_PACKAGES.items():
+        if folder != "core" and (module == package or module.startswith(package + ".")):
+            return folder
+    return "core" if module == "mechval" or module.startswith("mechval.") else None
+
+
+def imported_layers(folder: str) -> dict[str, set[str]]:
+    """Layer → the files of `folder` that import from it (function-local
+    imports included; relative imports stay inside the folder's package)."""
+    found: dict[str, set[str]] = {}
+    for path in sorted((ROOT / folder).glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
+            for name in names:
+                layer = layer_of(name)
+                if layer and layer != folder:
+                    found.setdefault(layer, set()).add(path.name)
+    return found
+
+
+def test_the_layers_hold_in_the_imports():
+    """Each folder imports only the layers docs/README.md's "Layers" table
+    allows it ("nothing of the others", named layers, or "all of the above")."""
+    rows = [r for r in table_rows(section("README.md", "Layers")) if r[0].startswith("`") and r[0].endswith("/`")]
+    allowed = {}
+    for folder, _package, _holds, may in rows:
+        folder = folder.strip("`/")
+        allowed[folder] = set(LAYER_PACKAGES) if "all" in may else set(re.findall(r"`(\w+)`", may))
+    assert set(allowed) == set(LAYER_PACKAGES)
+    for folder, may in allowed.items():
+        wrong = {layer: files for layer, files in imported_layers(folder).items() if layer not in may}
+        assert not wrong, f"{folder}/ imports {wrong}"
+
+
+def test_the_plugin_example_installs_and_passes_the_contract(tmp_path):
+    """adapters.md's plug-in (module and pyproject.toml), pip-installed into
+    a folder of its own, is found through its entry point and passes the
+    contract suite with the docs' own test file; the only skips are the
+    ones that file states."""
+    (module,) = [param.values[0] for param in blocks("python", "plugin")]
+    (pyproject,) = [param.values[0] for param in blocks("toml", "plugin")]
+    (contract_test,) = [param.values[0] for param in blocks("python", "plugin-test")]
+    (target,) = tomllib.loads(pyproject)["project"]["entry-points"]["mechval.engines"].values()
+    package = target.partition(":")[0]
+    source, site, tests = tmp_path / "src", tmp_path / "site", tmp_path / "tests"
+    (source / package).mkdir(parents=True)
+    (source / package / "__init__.py").write_text(module)
+    (source / "pyproject.toml").write_text(pyproject)
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
+                    "--target", str(site), str(source)], check=True, capture_output=True)
+    tests.mkdir()
+    (tests / "test_plugin_contract.py").write_text(contract_test)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(ROOT / "tests")])}
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", str(tests)],
+                         cwd=tests, env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert re.search(r"\d+ passed", run.stdout), run.stdout
+    stated = re.findall(r'without_\w+ = "([^"]+)"', contract_test)
+    skips = [line for line in run.stdout.splitlines() if line.startswith("SKIPPED")]
+    assert all(any(line.endswith(reason) for reason in stated) for line in skips), skips
 
 
 def slug(heading: str) -> str:

@@ -50,10 +50,10 @@ class EngineUnavailable(RuntimeError):
 @functools.lru_cache(maxsize=1)
 def plugins() -> dict[str, str]:
     """Engine name → "module:Class" from the `mechval.engines` entry points
-    (built-in names are reserved and skipped)."""
+    (built-in names and "reference" are reserved and skipped)."""
     found = {}
     for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-        if entry.name not in ADAPTERS:
+        if entry.name not in ADAPTERS and entry.name != REFERENCE:
             found[entry.name] = entry.value
     return found
 

@@ -97,8 +97,11 @@ def nice_count(ratio: float) -> int:
 def points_for(scenario: Scenario, engine: str, quick: bool = False, repeats: int = 3) -> list[Point]:
     """The sweep of one engine: its variants × its ladder and default step
     (the adapter's step for the scenario, as interval / k). Quick: the
-    default variant at the default step and one ~10× coarser."""
+    default variant at the default step and one ~10× coarser. An adapter
+    with no time step (`step_setting` empty) has one point: its defaults."""
     adapter_ = adapter(engine)
+    if not adapter_.step_setting:
+        return [Point(scenario, engine, "default", {}, default=True, repeats=repeats)]
     mechanism, times = build_mechanism(scenario), scenario.time.t
     interval = float(times[1] - times[0])
     default = float(adapter_.settings_for(scenario, mechanism)[adapter_.step_setting])

@@ -35,6 +35,22 @@ class Faithful(_Fake):
         return RawRun(raw_reference(mechanism, times))
 
 
+class Stepless(_Fake):
+    """An adapter with no time step and no settings (like the reference)."""
+    name = "stepless"
+    settings_spec = {}
+    step_setting = ""
+
+    def default_settings(self, mechanism, times):
+        return {}
+
+    def planned_steps(self, times, settings):
+        return 0.0, 0.0
+
+    def run(self, mechanism, times, settings):
+        return RawRun(raw_reference(mechanism, times))
+
+
 class Crashing(_Fake):
     name = "crashing"
 
@@ -96,7 +112,7 @@ class Spiking(_Fake):
 
 
 FAKES = {cls.name: f"fake_engines:{cls.__name__}"
-         for cls in (Faithful, Crashing, Hanging, Busy, NonFinite, Raising, Spiking)}
+         for cls in (Faithful, Stepless, Crashing, Hanging, Busy, NonFinite, Raising, Spiking)}
 
 
 if __name__ == "__main__":

@@ -120,6 +120,15 @@ def test_failures_are_data(monkeypatch, short_toml):
     assert set(cheapest(table)["engine"]) == {"faithful"}
 
 
+def test_an_adapter_without_a_time_step_costs_one_point(monkeypatch, short_toml):
+    """No step to sweep: its defaults are one point, timed and compared."""
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    table = sweep([load(str(short_toml))], ["stepless"], LocalExecutor(workers=1, timeout=60.0), repeats=1)
+    mine = table[table["engine"] == "stepless"]
+    assert set(mine["variant"]) == {"default"} and mine["default"].all() and (mine["failure"] == "").all()
+    assert mine["s_per_sim_s"].notna().all()
+
+
 def test_order_is_fitted_over_the_asymptotic_range_only():
     steps = np.array([1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2])
     # O(h²) with a floor at 1e-4 (fine end) and saturation at the coarsest step.

@@ -50,6 +50,7 @@ version = "0.0.1"
 tiny = "tiny_mechval_engine:TinyAdapter"
 missing = "tiny_mechval_engine:MissingLibraryAdapter"
 mujoco = "tiny_mechval_engine:TinyAdapter"
+reference = "tiny_mechval_engine:TinyAdapter"
 '''
 
 
@@ -86,14 +87,15 @@ def test_an_installed_plugin_is_listed_and_runs(installed, tmp_path):
     assert csv.read_text().splitlines()[1:] == reference.read_text().splitlines()[1:]
 
 
-def test_a_plugin_cannot_take_a_builtin_name(installed):
+def test_a_plugin_cannot_take_a_builtin_name_or_the_reference(installed):
     code = textwrap.dedent("""
         from mechval.engines import registry
         print(registry.targets()["mujoco"])
+        print(type(registry.adapter("reference")).__name__, "reference" in registry.engine_names())
     """)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env={**os.environ, "PYTHONPATH": str(installed)}, check=True).stdout
-    assert out.strip() == registry.ADAPTERS["mujoco"]
+    assert out.split("\n")[:2] == [registry.ADAPTERS["mujoco"], "ReferenceAdapter False"]
 
 
 def test_without_plugins_only_builtins():

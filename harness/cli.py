@@ -213,6 +213,15 @@ def cmd_cost(args) -> int:
     return 0
 
 
+def report_sections(records, scenarios, engines) -> list:
+    """The run report's sections after the summary: stability of the hard
+    cases, the engine findings measured on the installed versions, and the
+    model audit (which builds the models again and simulates nothing)."""
+    sections = (stability_section(records, scenarios), findings_section(measure_findings(engines)),
+                audit_section(audit_all(scenarios, engines)))
+    return [s for s in sections if s]
+
+
 def cmd_run(args) -> int:
     scenarios = _scenarios(args.scenarios, args.skip_hard)
     engines = _engines(args.engine)
@@ -233,9 +242,7 @@ def cmd_run(args) -> int:
         outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout,
                              on_done=done)
     records = discrepancies(outcomes, references)
-    audits = audit_all(scenarios, engines)          # builds the models again, simulates nothing
-    sections = [s for s in (stability_section(records, scenarios), findings_section(measure_findings(engines)),
-                            audit_section(audits)) if s]
+    sections = report_sections(records, scenarios, engines)
     if args.cost:
         table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
                                            quick=False, repeats=3, quiet=args.quiet)

@@ -20,6 +20,7 @@ from .build import Section, anchor
 ANCHOR = "audit"
 TITLE = "Model audit: what each engine will simulate"
 SECTION = Environment(autoescape=True).from_string("""
+<style>table.audit td { text-align: left; } table.audit td:nth-child(-n+2) { white-space: nowrap; }</style>
 <p>Each engine's model is built exactly as its run builds it and read back: every body's mass, centre of
 mass (body frame) and izz, every joint's kind, bodies, points, axis and damping, the drive law, gravity,
 and the effects the scene does not ask for, which must be absent. Engine values are converted to the
@@ -39,12 +40,10 @@ element or numerical setting with no Mechanism counterpart, or a quantity that l
 <details id="{{ t.anchor }}"{% if t.open %} open{% endif %}>
 <summary><strong>{{ t.scenario }} × {{ t.engine }}</strong>: {{ t.summary }}</summary>
 {% if t.rows %}
-<table class="small">
-  <tr>{% for c in columns %}<th>{{ c }}</th>{% endfor %}</tr>
-  {% for r in t.rows %}
-  <tr class="{{ r.css }}">{% for c in columns %}<td class="text"{% if loop.index <= 2 %} style="white-space: nowrap"{% endif %}>{{ r[c] }}</td>{% endfor %}</tr>
-  {% endfor %}
-</table>
+<table class="small audit">
+<tr>{% for c in columns %}<th>{{ c }}</th>{% endfor %}</tr>
+{% for r in t.rows %}<tr{% if r.css %} class="{{ r.css }}"{% endif %}>{% for c in columns %}<td>{{ r[c] }}</td>{% endfor %}</tr>
+{% endfor %}</table>
 {% endif %}
 </details>
 {% endfor %}

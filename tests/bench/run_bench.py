@@ -23,9 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from mechval.harness.cli import _engines, _scenarios
+from mechval.harness.cli import _engines, _scenarios, report_sections
 from mechval.reports.build import write_report
-from mechval.reports.stability import stability_section
 from mechval.harness.runner import discrepancies, references_for, run_tasks, tasks_for
 
 
@@ -94,8 +93,7 @@ def main() -> None:
         records = discrepancies(outcomes, references)
     out = Path(tempfile.mkdtemp(prefix="mechval-bench-")) / "report"
     with Phase("report build", phases):
-        sections = [s for s in (stability_section(records, scenarios),) if s]
-        write_report(out, scenarios, references, outcomes, records, sections)
+        write_report(out, scenarios, references, outcomes, records, report_sections(records, scenarios, engines))
 
     print(f"{'scenario':<24} {'engine':<24} {'run wall [s]':>12}")
     for o in sorted(outcomes, key=lambda o: -o.wall_time):

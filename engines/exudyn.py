@@ -38,7 +38,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Joint, Mechanism, point_motion, rotate
+from mechval.kinematics import joint_gaps, point_motion, rotate
+from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism
 
 from .base import EngineAdapter, RawRun, RunInfo, default_step
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
@@ -234,8 +235,7 @@ def _frame(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str, 
             missing[f"{joint.name}.M"] = NO_PRISMATIC_COUPLE
     columns[DRIVE_TORQUE] = -model.mbs.GetSensorStoredData(model.drive_sensor)[rows, 1]
 
-    gap = np.max([_joint_gap(motion, joint) for joint in mechanism.joints], axis=0)
-    columns["health.gap"] = gap[rows]
+    gap = joint_gaps(mechanism, motion)
     drive = mechanism.joint(mechanism.drive.joint)
     relative = _theta(motion, drive.body_j) - _theta(motion, drive.body_i)
     drive_error = np.abs(relative - mechanism.drive.law.angle(t_all))
@@ -263,15 +263,3 @@ def _frame_motion(mechanism: Mechanism, state: dict[str, dict[str, np.ndarray]],
 def _theta(motion: pd.DataFrame, body: str) -> np.ndarray:
     """The body's angle at every stored step (the ground's is 0)."""
     return np.zeros(len(motion)) if body == GROUND else motion[f"{body}.theta"].to_numpy()
-
-
-def _joint_gap(motion: pd.DataFrame, joint: Joint) -> np.ndarray:
-    """Distance between the joint's two sides (m): the two pin points of a
-    revolute joint; body_j's point off body_i's guide line for a prismatic one."""
-    p_i = point_motion(motion, joint.body_i, joint.point_i)
-    p_j = point_motion(motion, joint.body_j, joint.point_j)
-    dx, dy = p_j["x"] - p_i["x"], p_j["y"] - p_i["y"]
-    if joint.kind == "revolute":
-        return np.hypot(dx, dy)
-    nx, ny = rotate(_theta(motion, joint.body_i), (-joint.axis[1], joint.axis[0]))
-    return np.abs(nx * dx + ny * dy)

@@ -31,7 +31,8 @@ import exudyn.itemInterface as eii
 import numpy as np
 import pandas as pd
 
-from mechval.mechanism import GROUND, Body, Joint, Mechanism, point_motion, rotate
+from mechval.kinematics import point_motion, rotate
+from mechval.mechanism import GROUND, Body, Joint, Mechanism
 
 #: The adapter's solver names (setting "solver") → Exudyn's solvers.
 SOLVERS = {"index2": exu.DynamicSolverType.TrapezoidalIndex2, "index3": exu.DynamicSolverType.GeneralizedAlpha}

@@ -69,7 +69,8 @@ from mujoco import rollout
 
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step
 from mechval.settings import TIMESTEP, Choice, Number, Setting
-from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism, rotate
+from mechval.kinematics import separation_gap, slide_axis
+from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism
 
 from .mujoco_model import (CLOCK, DRIVE, INTEGRATORS, LOOP, SOLIMP, Names, Topology, coordinates, inertia_shift,
                            mjcf, raw_columns, topology)
@@ -457,15 +458,14 @@ class Model:
         cut = self.topo.cut.name
         col[f"{cut}.Fx"], col[f"{cut}.Fy"] = cut_force[:, 0], cut_force[:, 1]
         col[DRIVE_TORQUE] = drive_torque
-        col["health.gap"] = self.gaps(S["site_xpos"], col)
-        names = ["t"] + mech.motion_columns() + mech.reaction_columns() + ["health.gap"]
+        names = ["t"] + mech.motion_columns() + mech.reaction_columns()
         # One 2-D block: a DataFrame from a dict of columns costs milliseconds.
         block = np.empty((len(self.times), len(names)))
         for k, name in enumerate(names):
             block[:, k] = col[name]
         frame = pd.DataFrame(block, columns=names)
         drive_q = S["qpos"][:, m.jnt_qposadr[self.jid[self.drive.joint.name]]]
-        info = {"closure_gap_max": float(col["health.gap"].max()),
+        info = {"closure_gap_max": float(self.gaps(S["site_xpos"], col).max()),
                 "drive_error_max": float(np.abs(self.drive.sign * drive_q - mech.drive.law.angle(self.times)).max()),
                 "time_stamp_error_max": float(np.abs(S["time"] - self.times).max())}
         return frame, info
@@ -498,14 +498,10 @@ class Model:
 
     def gaps(self, site_xpos: np.ndarray, col: Mapping[str, np.ndarray]) -> np.ndarray:
         """Per sample, the largest distance between the two sides of any
-        joint (m); for a prismatic joint the offset across its axis."""
+        joint (m), from MuJoCo's own joint sites (`separation_gap`)."""
         worst = np.zeros(len(site_xpos))
         for j in self.mech.joints:
             p_i, p_j = (site_xpos[:, self.sid[s], :2] for s in self.names.sites(j))
-            r = p_j - p_i
-            if j.kind == "prismatic":
-                theta_i = np.zeros(len(r)) if j.body_i == GROUND else col[f"{j.body_i}.theta"]
-                u = np.column_stack(rotate(theta_i, j.axis))
-                r = r - np.sum(r * u, axis=1, keepdims=True) * u
-            worst = np.maximum(worst, np.hypot(r[:, 0], r[:, 1]))
+            u = slide_axis(col, j) if j.kind == "prismatic" else None
+            worst = np.maximum(worst, separation_gap(j, p_j[:, 0] - p_i[:, 0], p_j[:, 1] - p_i[:, 1], u))
         return worst

@@ -35,7 +35,8 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-from mechval.mechanism import DRIVE_TORQUE, GROUND, Joint, Mechanism, rotate
+from mechval.kinematics import rotate
+from mechval.mechanism import DRIVE_TORQUE, GROUND, Joint, Mechanism
 
 #: What the run info says about each derived slide (users see that the
 #: column is derived, not read).

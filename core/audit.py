@@ -49,10 +49,9 @@ from .mechanism import GROUND, Joint, Mechanism
 #: Engines store what they are given in float64 (PyBullet too; only its
 #: `getLinkState` link-frame output is float32, and the audits do not use it)
 #: and the audit converts world-frame values back with a few rotations, so a
-#: faithful model agrees to a few ulps: largest deviation measured over the
-#: 16 built-in scenes, 6.5e-16 (PyBullet, fourbar-long-run; MuJoCo 6.1e-16,
-#: Exudyn 3.6e-16; `tests/bench/audit_bench.py` runs them). 1e-12 leaves
-#: three decades for other geometry; a modelling slip is far larger.
+#: faithful model agrees to a few ulps (`tests/bench/audit_bench.py` prints
+#: the largest deviation over the built-in scenes). 1e-12 leaves three
+#: decades for other geometry; a modelling slip is far larger.
 AUDIT_RTOL = 1e-12
 
 Value = float | str

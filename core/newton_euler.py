@@ -151,9 +151,9 @@ def _det(M) -> np.ndarray:
 
 def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Solve small systems stored per entry, A (k, k, n) and b (k, n), by
-    Cramer's rule: for the 3×3 and 4×4 reduced systems this is an order of
-    magnitude faster than np.linalg.solve, which calls LAPACK once per
-    instant; the tests check it against that solve to ~1e-12."""
+    Cramer's rule: for the 3×3 and 4×4 reduced systems this is much faster
+    than np.linalg.solve, which calls LAPACK once per instant; the tests
+    check it against that solve to ~1e-12."""
     k = len(A)
     det = _det(A)
     x = np.empty_like(b)

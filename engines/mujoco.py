@@ -50,9 +50,10 @@ indeterminate, so any engine value there is legitimate and meaningless.
 High accuracy (variant "high-accuracy": refine = 4, solref_steps = 20): a
 quarter of the rule's step, the loop's solref at 20 of those steps. The
 soft constraints' error falls as the square of their time constant, but at
-10 steps RK4 shows a floor near 1e-5 once dt ≲ 1e-4. On fourbar-seed every
-force and torque is then within 6e-7 relative (default: 9e-6); a tenth of
-the step gains nothing more (5e-7).
+10 steps RK4 stops improving as dt shrinks (an error floor), hence the
+longer time constant with the shorter step. The figures are in
+docs/engines.md; tests/test_mujoco.py holds both settings to their goals
+on fourbar-seed.
 """
 
 from __future__ import annotations
@@ -107,8 +108,8 @@ class MujocoAdapter(EngineAdapter):
         "clock_mass": Number(1.0, 1e20),
         "preroll_timeconsts": Number(0.0, 1000.0),
     }
-    #: "high-accuracy": a quarter of the rule's step, solref 20 steps
-    #: (≤ 1e-6 relative on fourbar-seed's forces, see the module docstring).
+    #: "high-accuracy": a quarter of the rule's step, solref 20 steps (the
+    #: module docstring).
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "default": {}, "high-accuracy": {"refine": 4, "solref_steps": 20.0}}
     #: Integrators for `mechval cost` (the ladder sets `timestep`). Euler and
@@ -125,15 +126,14 @@ class MujocoAdapter(EngineAdapter):
         fastest motion, ≤ 1 ms), divided by `refine` (the step MuJoCo takes,
         dt; 1 by default); the loop's solref 10·dt, below which RK4 has an
         error floor; the drive's 1·dt (the drive equality has no such floor,
-        and its lag is what α2 shows: on a 150 rad/s crank 0.4 % of φ̈ at
-        10·dt, 0.02 % at 1·dt; 0.5·dt is worse again);
+        and its lag is what α2 shows: smallest at 1·dt, docs/engines.md);
         solimp at MuJoCo's cap 0.9999; Newton with tolerance 0 and a few
         iterations (a non-zero tolerance stops Newton at 0 iterations with the
         heavy clock); clock mass 1e12 kg, so the drive's reaction moves the
         clock by < 1e-9 rad over a run. The pre-roll lasts 20 solref time
         constants: the rigidly consistent start is not the soft constraints'
         equilibrium, and that transient (critically damped) must have died
-        out by t = 0 (4 time constants left 1e-4 errors in α2 and T12)."""
+        out by t = 0 (4 time constants left visible errors in α2 and T12)."""
         return {
             "mode": "forward",
             "integrator": "RK4",

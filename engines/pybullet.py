@@ -15,9 +15,9 @@ Conversion of PyBullet's native output to the Fij convention (docs/conventions.m
   the inverted slider's sleeve): F and M are NOT read but derived from the
   balance of body_j with PyBullet's own motion and its other joint forces
   (`pybullet_slide`), because the sensor misreports a slide whose parent
-  turns (a Coriolis-like term in ω·ṡ that does not shrink with dt, e.g.
-  1.5 % of M43's peak on shaper-quick-return; measured by the engine
-  finding probe, `findings`). The run info says so (`derived_reactions`).
+  turns (a Coriolis-like term in ω·ṡ that does not shrink with dt; the
+  engine finding probe, `pybullet_findings`, measures it). The run info
+  says so (`derived_reactions`).
 - Drive torque: `getJointState(drive)[3]`, the motor torque on the child
   link (the crank), i.e. T on body_j (negated if the child is body_i).
   Dampers are applied as external loads, so they are not part of it.

@@ -3,7 +3,7 @@
 Layout ("split", the default; `plan_layout`): every multibody is a root with
 leaf links only, so every multibody joint has its own valid force/torque
 sensor (PyBullet's sensor is wrong for a joint whose child carries further
-moving links: docs/engines.md, 40–80 % on F12/F32). The ground is the fixed
+moving links: an engine finding, docs/engines.md). The ground is the fixed
 root of the drive joint and the other ground joints; a prismatic joint
 between two moving bodies makes one of them the free root of the other;
 the remaining joints close the loop as `JOINT_POINT2POINT` constraints.
@@ -178,10 +178,11 @@ def configure_solver(client: int, timestep: float, gravity: tuple[float, float])
     """Time step and solver settings that add no effect and stop no early.
 
     Dantzig LCP (exact) instead of PGS; `solverResidualThreshold=0`
-    (Dantzig ignores it, but PGS, its fallback, stops early at the default
-    1e-7: 6e-2 force errors measured); no CFM and full error reduction
-    (erp 0.2: 1.4e-3); no sub-steps (they corrupt reported torques and
-    constraint forces: 0.8). Gravity is set explicitly (zero if none).
+    (Dantzig ignores it, but PGS, its fallback, stops early at the default);
+    no CFM and full error reduction; no sub-steps (they corrupt reported
+    torques and constraint forces). Gravity is set explicitly (zero if
+    none). tests/test_pybullet.py re-arms each default and measures what it
+    costs (figures: docs/engines.md).
     """
     p.setPhysicsEngineParameter(
         fixedTimeStep=timestep, numSubSteps=0,

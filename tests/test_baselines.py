@@ -149,6 +149,29 @@ def test_zero_signal_is_judged_by_the_absolute_floor():
     assert bl.regressed(bl.compare_to_baseline(zero, noise(10 * bl.ABSOLUTE_FLOOR)))
 
 
+def test_thresholds_tell_apart_what_they_must_on_the_committed_baselines():
+    """The reasons for DEFAULT_RTOL and ABSOLUTE_FLOOR, on the committed
+    data: an engine upgrade (MuJoCo 3.3.7 → 4.0.0) moves some signal of
+    every baseline by at least 1e-3 of its peak (measured 1.7e-3 to 6.3e-2),
+    ≥ 10⁶ × DEFAULT_RTOL; and α2 of a constant-speed crank, zero in theory,
+    is exactly 0 or an integration residue ≥ 1e-8 rad/s² (measured 9.2e-8 to
+    1.1e-5), ≥ 10⁴ × ABSOLUTE_FLOOR."""
+    old, new = ROOT / "mujoco" / "3.3.7", ROOT / "mujoco" / "4.0.0"
+    pairs = [(path, new / path.relative_to(old)) for path in sorted(old.rglob("*.csv"))]
+    assert pairs and all(after.exists() for _, after in pairs)
+    for before, after in pairs:
+        a, b = bl.load(before).signals, bl.load(after).signals
+        moved = max(np.nanmax(np.abs(b[c] - a[c])) / np.nanmax(np.abs(a[c])) for c in a.frame.columns[1:]
+                    if np.nanmax(np.abs(a[c])) > 0)
+        assert moved >= 1e6 * bl.DEFAULT_RTOL, before
+    steady = [p for p in COMMITTED if builtin_scenario(p.parent.name).drive.alpha == 0.0
+              and builtin_scenario(p.parent.name).drive.omega0 != 0.0]
+    assert steady
+    for path in steady:
+        residue = float(np.abs(bl.load(path).signals["alpha2"]).max())
+        assert residue == 0.0 or residue >= 1e4 * bl.ABSOLUTE_FLOOR, (path, residue)
+
+
 def test_changed_missing_values_samples_or_columns_are_regressions(stored):
     frame = stored.signals.frame
     name = frame.columns[-1]

@@ -43,15 +43,15 @@ from typing import Literal, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from .kinematics import rotate
 from .mechanism import GROUND, Joint, Mechanism
 
 #: Engines store what they are given in float64 (PyBullet too; only its
 #: `getLinkState` link-frame output is float32, and the audits do not use it)
 #: and the audit converts world-frame values back with a few rotations, so a
-#: faithful model agrees to a few ulps: largest deviation measured over the
-#: 16 built-in scenes, 6.5e-16 (PyBullet, fourbar-long-run; MuJoCo 6.1e-16,
-#: Exudyn 3.6e-16; `tests/bench/audit_bench.py` runs them). 1e-12 leaves
-#: three decades for other geometry; a modelling slip is far larger.
+#: faithful model agrees to a few ulps (`tests/bench/audit_bench.py` prints
+#: the largest deviation over the built-in scenes). 1e-12 leaves three
+#: decades for other geometry; a modelling slip is far larger.
 AUDIT_RTOL = 1e-12
 
 Value = float | str
@@ -242,27 +242,22 @@ def pose(start: Mapping[str, object], body: str) -> tuple[np.ndarray, float]:
     return np.array([value("x"), value("y")]), value("theta")
 
 
-def _rotation(theta: float) -> np.ndarray:
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, -s], [s, c]])
-
-
 def to_body(start: Mapping[str, object], body: str, world_point) -> np.ndarray:
     """A world point expressed in `body`'s frame at the reference pose:
     p_B = R(θ_B)ᵀ·(p_W − o_B)."""
     origin, theta = pose(start, body)
-    return _rotation(theta).T @ (np.asarray(world_point, dtype=float)[:2] - origin)
+    return np.array(rotate(-theta, np.asarray(world_point, dtype=float)[:2] - origin))
 
 
 def to_body_direction(start: Mapping[str, object], body: str, world_vector) -> np.ndarray:
     """A world direction expressed in `body`'s axes at the reference pose."""
-    return _rotation(pose(start, body)[1]).T @ np.asarray(world_vector, dtype=float)[:2]
+    return np.array(rotate(-pose(start, body)[1], np.asarray(world_vector, dtype=float)[:2]))
 
 
 def to_world(start: Mapping[str, object], body: str, body_point) -> np.ndarray:
     """A body-frame point in world at the reference pose."""
     origin, theta = pose(start, body)
-    return origin + _rotation(theta) @ np.asarray(body_point, dtype=float)[:2]
+    return origin + np.array(rotate(theta, np.asarray(body_point, dtype=float)[:2]))
 
 
 def nearest_on_line(point, through, direction) -> np.ndarray:

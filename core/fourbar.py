@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import interval_extremes, solve_loop_rates
+from .loop import crank_pin, interval_extremes, solve_loop_rates
 from .mechanism import GROUND, Body, Drive, Joint, Mechanism
 from .scenario import Scenario, ScenarioError
 
@@ -93,14 +93,10 @@ def kinematics(g: FourBarGeometry, law: DriveLaw, t: np.ndarray) -> dict[str, np
 def body_motion(g: FourBarGeometry, law: DriveLaw, t: np.ndarray) -> pd.DataFrame:
     """Raw motion columns of the three body frames (origins O2, A, O4)."""
     k = kinematics(g, law, t)
-    a, zero = g.crank, np.zeros_like(k["theta2"])
-    th2, w2, al2 = k["theta2"], k["omega2"], k["alpha2"]
-    c2, s2 = np.cos(th2), np.sin(th2)
+    zero = np.zeros_like(k["theta2"])
     origin = {
         "crank": (zero, zero, zero, zero, zero, zero),
-        # A = a·e2: v = a·ω2·j·e2, acc = a·(α2·j − ω2²)·e2.
-        "coupler": (a * c2, a * s2, -a * w2 * s2, a * w2 * c2,
-                    -a * al2 * s2 - a * w2**2 * c2, a * al2 * c2 - a * w2**2 * s2),
+        "coupler": crank_pin(g.crank, k["theta2"], k["omega2"], k["alpha2"]),
         "rocker": (zero + g.ground, zero, zero, zero, zero, zero),
     }
     columns = {"t": np.asarray(t, dtype=float)}

@@ -22,35 +22,10 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from .mechanism import DRIVE_TORQUE, GROUND, Mechanism, point_motion, rotate
+from .kinematics import joint_gaps, point_motion, slide_rate
+from .mechanism import DRIVE_TORQUE, GROUND, Mechanism
 
 HEALTH_COLUMNS = ("nonfinite", "gap", "drive_error", "assembly_flip", "power_residual")
-
-
-def joint_gaps(mech: Mechanism, raw) -> np.ndarray:
-    """Largest joint separation at each sample (m)."""
-    gaps = []
-    for joint in mech.joints:
-        Pj = point_motion(raw, joint.body_j, joint.point_j)
-        Pi = point_motion(raw, joint.body_i, joint.point_i)
-        dx, dy = Pj["x"] - Pi["x"], Pj["y"] - Pi["y"]
-        if joint.kind == "revolute":
-            gaps.append(np.hypot(dx, dy))
-        else:
-            theta_i = 0.0 if joint.body_i == GROUND else np.asarray(raw[f"{joint.body_i}.theta"])
-            ux, uy = rotate(np.asarray(theta_i, dtype=float), joint.axis)
-            gaps.append(np.abs(dx * uy - dy * ux))
-    return np.max(gaps, axis=0)
-
-
-def slide_rate(raw, joint) -> np.ndarray:
-    """Sliding speed of a prismatic joint: (v_Pj − v_Pi)·u. The two points
-    coincide up to the slide offset along u, so body_i's rotation adds
-    nothing along u."""
-    Pj, Pi = point_motion(raw, joint.body_j, joint.point_j), point_motion(raw, joint.body_i, joint.point_i)
-    theta_i = 0.0 if joint.body_i == GROUND else np.asarray(raw[f"{joint.body_i}.theta"])
-    ux, uy = rotate(np.asarray(theta_i, dtype=float), joint.axis)
-    return (Pj["vx"] - Pi["vx"]) * ux + (Pj["vy"] - Pi["vy"]) * uy
 
 
 def power_balance(mech: Mechanism, raw) -> tuple[np.ndarray, np.ndarray]:

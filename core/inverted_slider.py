@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import interval_extremes
+from .loop import crank_pin, interval_extremes
 from .mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, Joint, Mechanism
 from .scenario import Scenario, ScenarioError
 
@@ -126,13 +126,6 @@ def frames_table(t: np.ndarray, frames: dict[str, tuple]) -> pd.DataFrame:
     for body, values in frames.items():
         columns.update({f"{body}.{q}": v for q, v in zip(MOTION_QUANTITIES, values)})
     return pd.DataFrame(columns)
-
-
-def crank_pin(a: float, th2, w2, al2) -> tuple:
-    """x, y, vx, vy, ax, ay of A = a·e^{jθ2}: v = a·ω2·j·e2, acc = a·(α2·j − ω2²)·e2."""
-    c2, s2 = np.cos(th2), np.sin(th2)
-    return (a * c2, a * s2, -a * w2 * s2, a * w2 * c2,
-            -a * al2 * s2 - a * w2**2 * c2, a * al2 * c2 - a * w2**2 * s2)
 
 
 def body_motion(g: InvertedSliderGeometry, law: DriveLaw, t: np.ndarray) -> pd.DataFrame:

@@ -29,6 +29,16 @@ def solve_loop_rates(p: float, trig_p: tuple, q: float, trig_q: tuple,
     return u, v
 
 
+def crank_pin(a: float, theta, omega, alpha) -> tuple:
+    """x, y, vx, vy, ax, ay of the crank pin A = a·e^{jθ} of a crank turning
+    about the origin: v = a·ω·j·e^{jθ}, acc = a·(α·j − ω²)·e^{jθ} (Norton
+    ch. 6, 7). The closed forms keep this order of operations; the general
+    rigid-body relations are `mechval.kinematics.point_motion`."""
+    c, s = np.cos(theta), np.sin(theta)
+    return (a * c, a * s, -a * omega * s, a * omega * c,
+            -a * alpha * s - a * omega**2 * c, a * alpha * c - a * omega**2 * s)
+
+
 def interval_extremes(theta_lo: float, theta_hi: float, fn) -> tuple[float, float]:
     """Exact min and max of fn(θ) ∈ {cos, sin} over [theta_lo, theta_hi].
 

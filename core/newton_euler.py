@@ -31,7 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .mechanism import DRIVE_TORQUE, GROUND, Mechanism, point_motion, point_position, rotate
+from .kinematics import point_motion, point_position, slide_axis, slide_rate, trig
+from .mechanism import DRIVE_TORQUE, GROUND, Mechanism
 
 
 @dataclass(frozen=True)
@@ -77,27 +78,21 @@ def _equations(mech: Mechanism, motion, layout: Layout):
     rows: list[dict] = [{} for _ in range(len(layout.bodies) + len(prismatic))]
     b_var = np.zeros((len(rows), n))
     gx, gy = mech.gravity
-    trig = {b.name: (np.cos(motion[f"{b.name}.theta"]), np.sin(motion[f"{b.name}.theta"])) for b in mech.bodies}
-    at = lambda body, p: point_motion(motion, body, p, trig.get(body))
+    turns = {b.name: trig(motion, b.name) for b in mech.bodies}
     com = {}
     for idx, body in enumerate(mech.bodies):
-        G = com[body.name] = at(body.name, body.com)
+        G = com[body.name] = point_motion(motion, body.name, body.com, turns[body.name])
         b_force[2 * idx] = body.mass * (G["ax"] - gx)
         b_force[2 * idx + 1] = body.mass * (G["ay"] - gy)
         b_var[idx] = body.izz * motion[f"{body.name}.alpha"]
     row = {b: i for i, b in enumerate(layout.bodies)}
     omega = lambda name: 0.0 if name == GROUND else motion[f"{name}.omega"]
     for joint in mech.joints:
-        # Only a slide needs the joint point's velocity (its damper), so
-        # revolute joints take positions alone: the hot path at 10⁶ instants.
-        P = at(joint.body_j, joint.point_j) if joint.kind == "prismatic" else \
-            point_position(motion, joint.body_j, joint.point_j, trig.get(joint.body_j))
+        P = point_position(motion, joint.body_j, joint.point_j, turns.get(joint.body_j))
         cx, cy = layout.column[f"{joint.name}.Fx"], layout.column[f"{joint.name}.Fy"]
         if joint.kind == "prismatic":
-            P_i = at(joint.body_i, joint.point_i)
-            theta_i = 0.0 if joint.body_i == GROUND else motion[f"{joint.body_i}.theta"]
-            ux, uy = rotate(np.asarray(theta_i, dtype=float), joint.axis)
-            v_rel = (P["vx"] - P_i["vx"]) * ux + (P["vy"] - P_i["vy"]) * uy
+            ux, uy = slide_axis(motion, joint)
+            v_rel = slide_rate(motion, joint)
             damper = (-joint.damping * v_rel * ux, -joint.damping * v_rel * uy)
             rows[len(layout.bodies) + prismatic.index(joint)].update({cx: ux, cy: uy})
         else:
@@ -156,9 +151,9 @@ def _det(M) -> np.ndarray:
 
 def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Solve small systems stored per entry, A (k, k, n) and b (k, n), by
-    Cramer's rule: for the 3×3 and 4×4 reduced systems this is an order of
-    magnitude faster than np.linalg.solve, which calls LAPACK once per
-    instant; the tests check it against that solve to ~1e-12."""
+    Cramer's rule: for the 3×3 and 4×4 reduced systems this is much faster
+    than np.linalg.solve, which calls LAPACK once per instant; the tests
+    check it against that solve to ~1e-12."""
     k = len(A)
     det = _det(A)
     x = np.empty_like(b)

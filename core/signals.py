@@ -20,7 +20,8 @@ import numpy as np
 import pandas as pd
 
 from .adapter import RunInfo
-from .mechanism import GROUND, Mechanism, point_motion, rotate
+from .kinematics import slide_axis, slide_motion
+from .mechanism import Mechanism
 
 COMMON_SIGNALS = (
     "t", "theta2", "omega2", "alpha2", "theta3", "omega3", "alpha3",
@@ -125,33 +126,19 @@ def canonical_signals(
 
 def with_slide_columns(mechanism: Mechanism, raw: pd.DataFrame,
                        missing: dict[str, str]) -> tuple[pd.DataFrame, dict[str, str]]:
-    """Add the slide columns J.s, J.v, J.a, J.N of every prismatic joint J
-    the signal map asks for, derived from the raw body motion and reaction.
-
-    With u the axis in world axes (turning with body_i at ω_i, α_i),
-    n = ẑ × u and d = P_j − P_i (joint points): s = d·u (m), ṡ = ḋ·u +
-    ω_i·d·n, s̈ = d̈·u + 2·ω_i·ḋ·n + d·(α_i·n − ω_i²·u), and N = F·n, the
-    reaction's normal component (N; its reason for missing values is Fx's).
-    """
+    """Add the slide columns J.s, J.v, J.a of every prismatic joint J the
+    signal map asks for (`mechval.kinematics.slide_motion`, from the raw
+    body motion), and J.N = F·n, the reaction's component along the normal
+    n = ẑ × u of the axis u (N; its reason for missing values is Fx's)."""
     wanted = set(mechanism.signal_map.values())
     extra = {}
     for j in mechanism.joints:
         if j.kind != "prismatic" or f"{j.name}.s" not in wanted:
             continue
-        Pi, Pj = point_motion(raw, j.body_i, j.point_i), point_motion(raw, j.body_j, j.point_j)
-        on_ground = j.body_i == GROUND
-        col = lambda q: 0.0 if on_ground else raw[f"{j.body_i}.{q}"].to_numpy()
-        ux, uy = rotate(np.asarray(col("theta"), dtype=float), j.axis)
-        nx, ny = -uy, ux
-        w, al = col("omega"), col("alpha")
-        dx, dy = Pj["x"] - Pi["x"], Pj["y"] - Pi["y"]
-        dvx, dvy = Pj["vx"] - Pi["vx"], Pj["vy"] - Pi["vy"]
-        dax, day = Pj["ax"] - Pi["ax"], Pj["ay"] - Pi["ay"]
-        extra[f"{j.name}.s"] = dx * ux + dy * uy
-        extra[f"{j.name}.v"] = dvx * ux + dvy * uy + w * (dx * nx + dy * ny)
-        extra[f"{j.name}.a"] = (dax * ux + day * uy + 2 * w * (dvx * nx + dvy * ny)
-                                + dx * (al * nx - w * w * ux) + dy * (al * ny - w * w * uy))
+        extra.update({f"{j.name}.{q}": values for q, values in slide_motion(raw, j).items()})
         if f"{j.name}.Fx" in raw and f"{j.name}.Fy" in raw:
+            ux, uy = slide_axis(raw, j)
+            nx, ny = -uy, ux
             extra[f"{j.name}.N"] = raw[f"{j.name}.Fx"].to_numpy() * nx + raw[f"{j.name}.Fy"].to_numpy() * ny
             if f"{j.name}.Fx" in missing:
                 missing = {**missing, f"{j.name}.N": missing[f"{j.name}.Fx"]}

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import interval_extremes
+from .loop import crank_pin, interval_extremes
 from .mechanism import GROUND, Body, Drive, Joint, Mechanism
 from .scenario import Scenario, ScenarioError
 
@@ -70,13 +70,12 @@ def body_motion(g: SliderCrankGeometry, law: DriveLaw, t: np.ndarray) -> pd.Data
     """Raw motion columns of the body frames (origins O2, A, B; the slider
     frame keeps θ = 0)."""
     k = kinematics(g, law, t)
-    r2, zero = g.crank, np.zeros_like(k["theta2"])
+    zero = np.zeros_like(k["theta2"])
     th2, w2, al2 = k["theta2"], k["omega2"], k["alpha2"]
-    c2, s2 = np.cos(th2), np.sin(th2)
+    x, y, vx, vy, ax, ay = crank_pin(g.crank, th2, w2, al2)
     frames = {
         "crank": (zero, zero, th2, zero, zero, w2, zero, zero, al2),
-        "conrod": (r2 * c2, r2 * s2, k["theta3"], -r2 * w2 * s2, r2 * w2 * c2, k["omega3"],
-                   -r2 * al2 * s2 - r2 * w2**2 * c2, r2 * al2 * c2 - r2 * w2**2 * s2, k["alpha3"]),
+        "conrod": (x, y, k["theta3"], vx, vy, k["omega3"], ax, ay, k["alpha3"]),
         "slider": (k["x4"], zero + g.offset, zero, k["v4"], zero, zero, k["a4"], zero, zero),
     }
     columns = {"t": np.asarray(t, dtype=float)}

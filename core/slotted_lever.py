@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .inverted_slider import (crank_pin, first_instant, frames_table, pivot_reach, slide_loop, slide_signal_map,
-                              stroke_time_ratio)
+from .inverted_slider import first_instant, frames_table, pivot_reach, slide_loop, slide_signal_map, stroke_time_ratio
+from .loop import crank_pin
 from .mechanism import GROUND, Body, Drive, Joint, Mechanism
 from .scenario import Scenario, ScenarioError
 

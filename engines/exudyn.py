@@ -22,9 +22,8 @@ Conversion of Exudyn's native outputs to the mechval convention:
 - Time stamp: the implicit solvers satisfy the equations of motion and the
   constraints at the end of every step, so the sensor value recorded after
   the step to t_n+1 belongs to t_n+1 (no half-step shift as in explicit
-  engines; a one-step shift would cost ~1e-3 on fourbar-seed, the errors
-  there are 1.7e-5). Sensors record every step (write period 0), in memory
-  only.
+  engines; a one-step shift would turn the O(dt²) error into O(dt)).
+  Sensors record every step (write period 0), in memory only.
 Only in-plane force components and the z couple/torque are reported: the
 model is planar, and out-of-plane reactions of a planar loop are statically
 indeterminate anyway, so no engine's value there could be compared.
@@ -38,7 +37,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Joint, Mechanism, point_motion, rotate
+from mechval.kinematics import joint_gaps, point_motion, rotate
+from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism
 
 from mechval.adapter import as_float, steps_per_interval
 
@@ -56,13 +56,14 @@ if TYPE_CHECKING:
 #: only the floor ends the iteration, and since the residual is a force a
 #: fixed floor such as 1e-14 N is never reached (the solver aborts).
 NEWTON_TOLERANCE_PER_NEWTON = 1e-13
-#: Rotation per step for the step rule (`default_step`): 0.007 rad keeps
-#: index-2 errors near 1.4e-5 of peak on fourbar-seed (0.01 rad: 2.8e-5,
-#: docs/engines.md's step rule; cost grows as 1/rad_per_step).
+#: Rotation per step for the step rule (`default_step`): finer than the
+#: shared 0.01 rad, so that index-2 meets SEED_DEFAULT_ERROR of
+#: tests/test_exudyn.py on fourbar-seed (figures: docs/engines.md); cost
+#: grows as 1/rad_per_step.
 RAD_PER_STEP = 0.007
 #: The index-3 force transient after the start shrinks like ρ^n over n
-#: steps (measured on fourbar-seed: 3e-4 → 4e-7 in 100 steps at ρ = 0.9,
-#: at dt 1e-3 and 2e-4 alike); the pre-roll lets it decay by this factor.
+#: steps, whatever the step (docs/engines.md); the pre-roll lets it decay
+#: by this factor.
 INDEX3_TRANSIENT_DECAY = 1e-8
 NO_PRISMATIC_COUPLE = "Exudyn 1.13.6 reports no couple of ObjectJointPrismatic2D (ForceLocal[2] stays 0)"
 
@@ -87,8 +88,8 @@ class ExudynAdapter(EngineAdapter):
         "adaptive_step": Flag(),
     }
     #: Also report the index-3 solver. (High accuracy is a smaller step, e.g.
-    #: timestep 1e-4 on fourbar-seed: every signal within 3e-7 of its peak,
-    #: angles 5e-8 rad; a fixed step is no variant for every scene.)
+    #: timestep 1e-4 on fourbar-seed, held by tests/test_exudyn.py's
+    #: HIGH_ACCURACY_ERROR; a fixed step is no variant for every scene.)
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}, "index3": {"solver": "index3"}}
     #: Both solvers for `mechval cost` (the ladder sets `timestep`).
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"index2": {}, "index3": {"solver": "index3"}}
@@ -118,7 +119,7 @@ class ExudynAdapter(EngineAdapter):
           of the drive; the kinematic accelerations are supplied instead;
         - full_newton True, tolerances 1e-12 relative and an absolute floor
           scaled by a force estimate: modified Newton at Exudyn's default
-          tolerances costs 3.8e-5 on forces at dt 1e-4 (full Newton: 8e-9);
+          tolerances caps the force accuracy, at no saving (docs/engines.md);
         - adaptive_step False: it silently shrinks steps;
         - spectral_radius (index-3 only): numerical damping; must stay < 1
           (at 1, λ zig-zags from step to step without decay).
@@ -247,8 +248,7 @@ def _frame(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str, 
             missing[f"{joint.name}.M"] = NO_PRISMATIC_COUPLE
     columns[DRIVE_TORQUE] = -model.mbs.GetSensorStoredData(model.drive_sensor)[rows, 1]
 
-    gap = np.max([_joint_gap(motion, joint) for joint in mechanism.joints], axis=0)
-    columns["health.gap"] = gap[rows]
+    gap = joint_gaps(mechanism, motion)
     drive = mechanism.joint(mechanism.drive.joint)
     relative = _theta(motion, drive.body_j) - _theta(motion, drive.body_i)
     drive_error = np.abs(relative - mechanism.drive.law.angle(t_all))
@@ -276,15 +276,3 @@ def _frame_motion(mechanism: Mechanism, state: dict[str, dict[str, np.ndarray]],
 def _theta(motion: pd.DataFrame, body: str) -> np.ndarray:
     """The body's angle at every stored step (the ground's is 0)."""
     return np.zeros(len(motion)) if body == GROUND else motion[f"{body}.theta"].to_numpy()
-
-
-def _joint_gap(motion: pd.DataFrame, joint: Joint) -> np.ndarray:
-    """Distance between the joint's two sides (m): the two pin points of a
-    revolute joint; body_j's point off body_i's guide line for a prismatic one."""
-    p_i = point_motion(motion, joint.body_i, joint.point_i)
-    p_j = point_motion(motion, joint.body_j, joint.point_j)
-    dx, dy = p_j["x"] - p_i["x"], p_j["y"] - p_i["y"]
-    if joint.kind == "revolute":
-        return np.hypot(dx, dy)
-    nx, ny = rotate(_theta(motion, joint.body_i), (-joint.axis[1], joint.axis[0]))
-    return np.abs(nx * dx + ny * dy)

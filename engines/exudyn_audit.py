@@ -31,6 +31,7 @@ import pandas as pd
 
 from mechval.audit import (DRIVE, SCENE, Reading, audit, axis_readings, body_item, bodies_text, expected_model,
                            joint_item, listing, point_readings, to_body)
+from mechval.kinematics import rotate
 from mechval.mechanism import GROUND, Joint, Mechanism
 
 from .exudyn import prepare
@@ -93,8 +94,7 @@ class Reader:
 
     def world(self, number: int, local) -> np.ndarray:
         origin, theta = self.frame(number)
-        c, s = np.cos(theta), np.sin(theta)
-        return origin + np.array([[c, -s], [s, c]]) @ np.asarray(local, dtype=float)[:2]
+        return origin + np.array(rotate(theta, np.asarray(local, dtype=float)[:2]))
 
     def body(self, name: str) -> list[Reading]:
         number = next(i for i, b in self.object_body.items()

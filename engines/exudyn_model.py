@@ -31,7 +31,8 @@ import exudyn.itemInterface as eii
 import numpy as np
 import pandas as pd
 
-from mechval.mechanism import GROUND, Body, Joint, Mechanism, point_motion, rotate
+from mechval.kinematics import point_motion, rotate
+from mechval.mechanism import GROUND, Body, Joint, Mechanism
 
 #: The adapter's solver names (setting "solver") → Exudyn's solvers.
 SOLVERS = {"index2": exu.DynamicSolverType.TrapezoidalIndex2, "index3": exu.DynamicSolverType.GeneralizedAlpha}
@@ -194,8 +195,9 @@ def _add_drive(mbs: exu.MainSystem, mechanism: Mechanism, rotation: dict[str, in
     base = theta_ref[joint.body_j] - theta_ref[joint.body_i]
 
     # DriveLaw's φ and φ̇ in plain floats: these run at every Newton
-    # iteration, and numpy on scalars took ~45 % of a run. The adapter's
-    # "drive_error_max" checks the result against DriveLaw itself.
+    # iteration, where numpy's per-call cost on scalars would take a large
+    # share of a run (tests/bench/exudyn_bench.py times the adapter). The
+    # adapter's "drive_error_max" checks the result against DriveLaw itself.
     phi0, omega0, alpha = float(law.phi0) - base, float(law.omega0), float(law.alpha)
 
     def offset(mbs, t, item, l_offset):  # noqa: ARG001 - Exudyn's signature

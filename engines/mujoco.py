@@ -50,9 +50,10 @@ indeterminate, so any engine value there is legitimate and meaningless.
 High accuracy (variant "high-accuracy": refine = 4, solref_steps = 20): a
 quarter of the rule's step, the loop's solref at 20 of those steps. The
 soft constraints' error falls as the square of their time constant, but at
-10 steps RK4 shows a floor near 1e-5 once dt ≲ 1e-4. On fourbar-seed every
-force and torque is then within 6e-7 relative (default: 9e-6); a tenth of
-the step gains nothing more (5e-7).
+10 steps RK4 stops improving as dt shrinks (an error floor), hence the
+longer time constant with the shorter step. The figures are in
+docs/engines.md; tests/test_mujoco.py holds both settings to their goals
+on fourbar-seed.
 """
 
 from __future__ import annotations
@@ -70,7 +71,8 @@ from mujoco import rollout
 from mechval.adapter import as_float, ceil_or_inf, steps_per_interval
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step
 from mechval.settings import TIMESTEP, Choice, Number, Setting
-from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism, rotate
+from mechval.kinematics import separation_gap, slide_axis
+from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism
 
 from .mujoco_model import (CLOCK, DRIVE, INTEGRATORS, LOOP, SOLIMP, Names, Topology, coordinates, inertia_shift,
                            mjcf, raw_columns, topology)
@@ -107,8 +109,8 @@ class MujocoAdapter(EngineAdapter):
         "clock_mass": Number(1.0, 1e20),
         "preroll_timeconsts": Number(0.0, 1000.0),
     }
-    #: "high-accuracy": a quarter of the rule's step, solref 20 steps
-    #: (≤ 1e-6 relative on fourbar-seed's forces, see the module docstring).
+    #: "high-accuracy": a quarter of the rule's step, solref 20 steps (the
+    #: module docstring).
     variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "default": {}, "high-accuracy": {"refine": 4, "solref_steps": 20.0}}
     #: Integrators for `mechval cost` (the ladder sets `timestep`). Euler and
@@ -136,15 +138,14 @@ class MujocoAdapter(EngineAdapter):
         fastest motion, ≤ 1 ms), divided by `refine` (the step MuJoCo takes,
         dt; 1 by default); the loop's solref 10·dt, below which RK4 has an
         error floor; the drive's 1·dt (the drive equality has no such floor,
-        and its lag is what α2 shows: on a 150 rad/s crank 0.4 % of φ̈ at
-        10·dt, 0.02 % at 1·dt; 0.5·dt is worse again);
+        and its lag is what α2 shows: smallest at 1·dt, docs/engines.md);
         solimp at MuJoCo's cap 0.9999; Newton with tolerance 0 and a few
         iterations (a non-zero tolerance stops Newton at 0 iterations with the
         heavy clock); clock mass 1e12 kg, so the drive's reaction moves the
         clock by < 1e-9 rad over a run. The pre-roll lasts 20 solref time
         constants: the rigidly consistent start is not the soft constraints'
         equilibrium, and that transient (critically damped) must have died
-        out by t = 0 (4 time constants left 1e-4 errors in α2 and T12)."""
+        out by t = 0 (4 time constants left visible errors in α2 and T12)."""
         return {
             "mode": "forward",
             "integrator": "RK4",
@@ -469,15 +470,14 @@ class Model:
         cut = self.topo.cut.name
         col[f"{cut}.Fx"], col[f"{cut}.Fy"] = cut_force[:, 0], cut_force[:, 1]
         col[DRIVE_TORQUE] = drive_torque
-        col["health.gap"] = self.gaps(S["site_xpos"], col)
-        names = ["t"] + mech.motion_columns() + mech.reaction_columns() + ["health.gap"]
+        names = ["t"] + mech.motion_columns() + mech.reaction_columns()
         # One 2-D block: a DataFrame from a dict of columns costs milliseconds.
         block = np.empty((len(self.times), len(names)))
         for k, name in enumerate(names):
             block[:, k] = col[name]
         frame = pd.DataFrame(block, columns=names)
         drive_q = S["qpos"][:, m.jnt_qposadr[self.jid[self.drive.joint.name]]]
-        info = {"closure_gap_max": float(col["health.gap"].max()),
+        info = {"closure_gap_max": float(self.gaps(S["site_xpos"], col).max()),
                 "drive_error_max": float(np.abs(self.drive.sign * drive_q - mech.drive.law.angle(self.times)).max()),
                 "time_stamp_error_max": float(np.abs(S["time"] - self.times).max())}
         return frame, info
@@ -510,14 +510,10 @@ class Model:
 
     def gaps(self, site_xpos: np.ndarray, col: Mapping[str, np.ndarray]) -> np.ndarray:
         """Per sample, the largest distance between the two sides of any
-        joint (m); for a prismatic joint the offset across its axis."""
+        joint (m), from MuJoCo's own joint sites (`separation_gap`)."""
         worst = np.zeros(len(site_xpos))
         for j in self.mech.joints:
             p_i, p_j = (site_xpos[:, self.sid[s], :2] for s in self.names.sites(j))
-            r = p_j - p_i
-            if j.kind == "prismatic":
-                theta_i = np.zeros(len(r)) if j.body_i == GROUND else col[f"{j.body_i}.theta"]
-                u = np.column_stack(rotate(theta_i, j.axis))
-                r = r - np.sum(r * u, axis=1, keepdims=True) * u
-            worst = np.maximum(worst, np.hypot(r[:, 0], r[:, 1]))
+            u = slide_axis(col, j) if j.kind == "prismatic" else None
+            worst = np.maximum(worst, separation_gap(j, p_j[:, 0] - p_i[:, 0], p_j[:, 1] - p_i[:, 1], u))
         return worst

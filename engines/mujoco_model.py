@@ -36,7 +36,8 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.mechanism import GROUND, Joint, Mechanism, point_motion, rotate
+from mechval.kinematics import rotate, slide_motion
+from mechval.mechanism import GROUND, Joint, Mechanism
 
 from .base import Unrepresentable
 from mechval.settings import Number, Numbers
@@ -349,9 +350,8 @@ def coordinates(mech: Mechanism, topo: Topology,
     """Reference (q, q̇, q̈) of every tree joint and the clock, from the
     reference body motion (used for the initial state and inverse mode).
 
-    Hinge: q = θchild − θparent. Slide: q = sign·s with s = r·u the travel
-    of P_j from P_i along the axis u (body_i frame, rotating with ω_i):
-    ṡ = ṙ·u + r·u̇, s̈ = r̈·u + 2ṙ·u̇ + r·ü, u̇ = ω_i k×u, ü = α_i k×u − ω_i² u.
+    Hinge: q = θchild − θparent. Slide: q = sign·s with s the travel of P_j
+    from P_i along the axis (`mechval.kinematics.slide_motion`).
     """
     t = motion["t"]
     zero = np.zeros(len(t))
@@ -362,20 +362,8 @@ def coordinates(mech: Mechanism, topo: Topology,
         if j.kind == "revolute":
             out[j.name] = tuple(tj.sign * (rate(j.body_j, q) - rate(j.body_i, q)) for q in ("theta", "omega", "alpha"))
             continue
-        Pj, Pi = point_motion(motion, j.body_j, j.point_j), point_motion(motion, j.body_i, j.point_i)
-        th, w, al = (rate(j.body_i, q) for q in ("theta", "omega", "alpha"))
-        ux, uy = rotate(th, j.axis)
-        kux, kuy = -uy, ux                                   # k × u
-        r = (Pj["x"] - Pi["x"], Pj["y"] - Pi["y"])
-        rd = (Pj["vx"] - Pi["vx"], Pj["vy"] - Pi["vy"])
-        rdd = (Pj["ax"] - Pi["ax"], Pj["ay"] - Pi["ay"])
-        ud = (w * kux, w * kuy)
-        udd = (al * kux - w * w * ux, al * kuy - w * w * uy)
-        dot = lambda a, b: a[0] * b[0] + a[1] * b[1]
-        s = dot(r, (ux, uy))
-        sd = dot(rd, (ux, uy)) + dot(r, ud)
-        sdd = dot(rdd, (ux, uy)) + 2 * dot(rd, ud) + dot(r, udd)
-        out[j.name] = (tj.sign * s, tj.sign * sd, tj.sign * sdd)
+        slide = slide_motion(motion, j)
+        out[j.name] = tuple(tj.sign * slide[q] for q in ("s", "v", "a"))
     law = mech.drive.law
     out[CLOCK] = (law.angle(t), law.rate(t), law.acceleration(t))
     return out

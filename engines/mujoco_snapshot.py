@@ -1,14 +1,14 @@
 """Per-sample copies of several mjData fields in one copy.
 
 The read-out stores about a dozen small mjData arrays at every sample. A
-numpy assignment costs about a microsecond whatever its size, so copying
-them one by one was most of the read-out's Python cost (a quarter of the
-adapter's overhead on a 400-sample run). mjData keeps its fixed-size arrays
+numpy assignment has a fixed cost whatever its size, so copying them one
+by one was most of the read-out's Python cost (tests/bench/mujoco_bench.py
+times the read-out). mjData keeps its fixed-size arrays
 (`MJDATA_POINTERS` in mjxmacro.h, `qpos` first) in one buffer of
 `MjData.nbuffer` bytes that does not move for the life of the data, so a
 single view of the span that holds the wanted fields, copied once per
-sample, takes them all. The span also holds fields nobody wants (about 5×
-the wanted bytes), so it is copied into a small block that is unpacked into
+sample, takes them all. The span also holds fields nobody wants (several
+times the wanted bytes), so it is copied into a small block that is unpacked into
 per-field arrays every `CHUNK` samples: memory grows with the wanted fields
 only.
 """

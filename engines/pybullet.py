@@ -15,9 +15,9 @@ Conversion of PyBullet's native output to the Fij convention (docs/conventions.m
   the inverted slider's sleeve): F and M are NOT read but derived from the
   balance of body_j with PyBullet's own motion and its other joint forces
   (`pybullet_slide`), because the sensor misreports a slide whose parent
-  turns (a Coriolis-like term in ω·ṡ that does not shrink with dt, e.g.
-  1.5 % of M43's peak on shaper-quick-return; measured by the engine
-  finding probe, `findings`). The run info says so (`derived_reactions`).
+  turns (a Coriolis-like term in ω·ṡ that does not shrink with dt; the
+  engine finding probe, `pybullet_findings`, measures it). The run info
+  says so (`derived_reactions`).
 - Drive torque: `getJointState(drive)[3]`, the motor torque on the child
   link (the crank), i.e. T on body_j (negated if the child is body_i).
   Dampers are applied as external loads, so they are not part of it.
@@ -46,7 +46,8 @@ from typing import Any, Callable, ClassVar, Mapping
 
 import numpy as np
 import pandas as pd
-from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism, rotate
+from mechval.kinematics import joint_gaps, rigid_velocity, rotate_scalar
+from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism
 
 from mechval.adapter import as_float, steps_per_interval
 
@@ -120,7 +121,7 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     relative = frame[f"{drive.body_j}.theta"] - (0.0 if drive.body_i == GROUND else frame[f"{drive.body_i}.theta"])
     info = {
         "timestep_used": dt, "steps": steps,
-        "closure_gap_max": float(frame["health.gap"].max()),
+        "closure_gap_max": float(joint_gaps(mechanism, frame).max()),
         "drive_error_max": float(np.abs(relative - mechanism.drive.law.angle(times)).max()),
         "build_time_s": built - started, "wall_time_s": wall,
     }
@@ -218,9 +219,9 @@ class Stepper:
             x, y, z, w = orn
             theta = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
             # PyBullet reports the COM; shift to the body frame origin.
-            rx, ry = _turn(theta, (-body.com[0], -body.com[1]))
-            state[body.name] = (pos[0] + rx, pos[1] + ry, theta,
-                                vel[0] - ang[2] * ry, vel[1] + ang[2] * rx, ang[2])
+            r = rotate_scalar(theta, (-body.com[0], -body.com[1]))
+            vx, vy = rigid_velocity(vel[0], vel[1], ang[2], r)
+            state[body.name] = (pos[0] + r[0], pos[1] + r[1], theta, vx, vy, ang[2])
         return state
 
     def joint_rates(self, state: dict[str, BodyState]) -> dict[str, float]:
@@ -232,7 +233,7 @@ class Stepper:
             if joint.kind == "revolute":
                 rates[joint.name] = sj[5] - si[5]
                 continue
-            ux, uy = _turn(si[2], joint.axis)
+            ux, uy = rotate_scalar(si[2], joint.axis)
             vi = _point_velocity(si, joint.point_i)
             vj = _point_velocity(sj, joint.point_j)
             rates[joint.name] = (vj[0] - vi[0]) * ux + (vj[1] - vi[1]) * uy
@@ -256,9 +257,9 @@ class Stepper:
                                           physicsClientId=self.c)
                     on_body[2] += sign * load
                     continue
-                ux, uy = _turn(state.get(joint.body_i, AT_REST)[2], joint.axis)
+                ux, uy = rotate_scalar(state.get(joint.body_i, AT_REST)[2], joint.axis)
                 sj = state[joint.body_j]
-                px, py = _turn(sj[2], joint.point_j)
+                px, py = rotate_scalar(sj[2], joint.point_j)
                 fx, fy, x, y = sign * load * ux, sign * load * uy, sj[0] + px, sj[1] + py
                 p.applyExternalForce(h.uid, h.link, (fx, fy, 0.0), (x, y, 0.0), p.WORLD_FRAME,
                                      physicsClientId=self.c)
@@ -315,20 +316,12 @@ class Stepper:
             columns.update({f"{b}.{q}": v for q, v in zip(MOTION_QUANTITIES, values)})
         for key in reactions[0]:
             columns[key] = np.array([r[key] for r in reactions])
-        frame = pd.DataFrame(columns)
-        frame["health.gap"] = joint_gaps(self.mech, frame)
-        return frame
-
-
-def _turn(theta: float, v: tuple[float, float]) -> tuple[float, float]:
-    """World components of a body-frame vector (scalar `rotate`)."""
-    c, s = math.cos(theta), math.sin(theta)
-    return c * v[0] - s * v[1], s * v[0] + c * v[1]
+        return pd.DataFrame(columns)
 
 
 def _point_velocity(s: BodyState, point: tuple[float, float]) -> tuple[float, float]:
-    rx, ry = _turn(s[2], point)
-    return s[3] - s[5] * ry, s[4] + s[5] * rx
+    """World velocity of a body-fixed point from the body's reading."""
+    return rigid_velocity(s[3], s[4], s[5], rotate_scalar(s[2], point))
 
 
 def _unwrap(wrapped: np.ndarray, omega: np.ndarray, t: np.ndarray, theta0: float, omega0: float,
@@ -343,27 +336,3 @@ def _unwrap(wrapped: np.ndarray, omega: np.ndarray, t: np.ndarray, theta0: float
         out[k] = a + 2 * np.pi * np.round((guess - a) / (2 * np.pi))
         prev, prev_w, prev_t = out[k], w, t[k]
     return out
-
-
-def joint_gaps(mechanism: Mechanism, frame: pd.DataFrame) -> np.ndarray:
-    """Largest distance between the two sides of any joint, per sample (m):
-    the pin separation of a revolute joint, the offset of point_j from the
-    guide line of a prismatic joint."""
-    gaps = []
-    for joint in mechanism.joints:
-        ends = []
-        for body, point in ((joint.body_i, joint.point_i), (joint.body_j, joint.point_j)):
-            if body == GROUND:
-                ends.append((np.full(len(frame), point[0]), np.full(len(frame), point[1])))
-                continue
-            th = frame[f"{body}.theta"].to_numpy()
-            rx, ry = rotate(th, point)
-            ends.append((frame[f"{body}.x"].to_numpy() + rx, frame[f"{body}.y"].to_numpy() + ry))
-        dx, dy = ends[1][0] - ends[0][0], ends[1][1] - ends[0][1]
-        if joint.kind == "revolute":
-            gaps.append(np.hypot(dx, dy))
-        else:
-            th_i = 0.0 if joint.body_i == GROUND else frame[f"{joint.body_i}.theta"].to_numpy()
-            ux, uy = rotate(th_i, joint.axis)
-            gaps.append(np.abs(ux * dy - uy * dx))
-    return np.max(gaps, axis=0)

@@ -37,7 +37,8 @@ import pandas as pd
 
 from mechval.audit import (DRIVE, SCENE, Reading, audit, axis_readings, bodies_text, body_item, expected_model, inertia_readings,
                            joint_item, listing, point_readings, to_body)
-from mechval.mechanism import GROUND, Joint, Mechanism, point_motion, rotate
+from mechval.kinematics import slide_motion
+from mechval.mechanism import GROUND, Joint, Mechanism
 
 from .pybullet import Stepper, step_plan
 from .pybullet_model import BodyHandle, Model, build, p
@@ -102,11 +103,7 @@ def peak_joint_rate(mech: Mechanism, times: np.ndarray) -> float:
     for j in mech.joints:
         rate = col(j.body_j, "omega") - col(j.body_i, "omega")
         if j.kind == "prismatic":
-            point = point_motion(motion, j.body_j, j.point_j)
-            rx, ry = point["x"] - col(j.body_i, "x"), point["y"] - col(j.body_i, "y")
-            w = col(j.body_i, "omega")
-            ux, uy = rotate(col(j.body_i, "theta"), j.axis)
-            rate = (point["vx"] - col(j.body_i, "vx") + w * ry) * ux + (point["vy"] - col(j.body_i, "vy") - w * rx) * uy
+            rate = slide_motion(motion, j)["v"]
         peak = max(peak, float(np.abs(rate).max()))
     return peak
 

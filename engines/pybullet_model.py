@@ -3,7 +3,7 @@
 Layout ("split", the default; `plan_layout`): every multibody is a root with
 leaf links only, so every multibody joint has its own valid force/torque
 sensor (PyBullet's sensor is wrong for a joint whose child carries further
-moving links: docs/engines.md, 40–80 % on F12/F32). The ground is the fixed
+moving links: an engine finding, docs/engines.md). The ground is the fixed
 root of the drive joint and the other ground joints; a prismatic joint
 between two moving bodies makes one of them the free root of the other;
 the remaining joints close the loop as `JOINT_POINT2POINT` constraints.
@@ -32,7 +32,8 @@ from .base import native_output_silenced
 with native_output_silenced():      # PyBullet prints its build time on import
     import pybullet as p
 
-from mechval.mechanism import GROUND, Joint, Mechanism, point_motion
+from mechval.kinematics import point_motion, point_position, rotate_scalar, separation, slide_axis, slide_motion
+from mechval.mechanism import GROUND, Joint, Mechanism
 
 #: Force/impulse caps meant as "no cap": far above any kN-scale reaction,
 #: far below overflow.
@@ -177,10 +178,11 @@ def configure_solver(client: int, timestep: float, gravity: tuple[float, float])
     """Time step and solver settings that add no effect and stop no early.
 
     Dantzig LCP (exact) instead of PGS; `solverResidualThreshold=0`
-    (Dantzig ignores it, but PGS, its fallback, stops early at the default
-    1e-7: 6e-2 force errors measured); no CFM and full error reduction
-    (erp 0.2: 1.4e-3); no sub-steps (they corrupt reported torques and
-    constraint forces: 0.8). Gravity is set explicitly (zero if none).
+    (Dantzig ignores it, but PGS, its fallback, stops early at the default);
+    no CFM and full error reduction; no sub-steps (they corrupt reported
+    torques and constraint forces). Gravity is set explicitly (zero if
+    none). tests/test_pybullet.py re-arms each default and measures what it
+    costs (figures: docs/engines.md).
     """
     p.setPhysicsEngineParameter(
         fixedTimeStep=timestep, numSubSteps=0,
@@ -253,13 +255,13 @@ def _build_multibody(mechanism: Mechanism, model: Model, root: str, links: list[
             orientations.append(quat_z(rel))
             types.append(p.JOINT_PRISMATIC)
             # The axis is fixed in body_i; the joint axis is in the child frame.
-            ax = joint.axis if child == joint.body_i else _rotate(-rel, joint.axis)
+            ax = joint.axis if child == joint.body_i else rotate_scalar(-rel, joint.axis)
             axes.append((ax[0], ax[1], 0.0))
     n = len(links)
     if root == GROUND:
         base = dict(baseMass=0.0, basePosition=(0, 0, 0), baseOrientation=quat_z(0.0))
     else:
-        com = point_motion(pose, root, _com(model, root))
+        com = point_position(pose, root, _com(model, root))
         base = dict(baseMass=mechanism.body(root).mass, basePosition=(com["x"][0], com["y"][0], 0.0),
                     baseOrientation=quat_z(_angle(pose, root)))
     uid = p.createMultiBody(
@@ -292,20 +294,14 @@ def _joint_coordinate(mechanism: Mechanism, joint: Joint, parent: str, child: st
         return (_angle(pose, child) - _angle(pose, parent), _omega(rates, child) - _omega(rates, parent))
     # Slide along the axis (fixed in body_i) of point_j relative to point_i;
     # the child's coordinate runs the other way when the child is body_i.
+    # The rate: the joint points' relative velocity at `rates` along the
+    # axis as it stands at `pose`, where the model is built.
     sign = 1.0 if child == joint.body_j else -1.0
-    ux, uy = _rotate(_angle(pose, joint.body_i), joint.axis)
-    pi = point_motion(pose, joint.body_i, joint.point_i)
-    pj = point_motion(pose, joint.body_j, joint.point_j)
-    vi = point_motion(rates, joint.body_i, joint.point_i)
-    vj = point_motion(rates, joint.body_j, joint.point_j)
-    s = (pj["x"][0] - pi["x"][0]) * ux + (pj["y"][0] - pi["y"][0]) * uy
-    v = (vj["vx"][0] - vi["vx"][0]) * ux + (vj["vy"][0] - vi["vy"][0]) * uy
-    return sign * float(s), sign * float(v)
-
-
-def _rotate(theta: float, v: tuple[float, float]) -> tuple[float, float]:
-    c, s = np.cos(theta), np.sin(theta)
-    return (float(c * v[0] - s * v[1]), float(s * v[0] + c * v[1]))
+    ux, uy = slide_axis(pose, joint)
+    d = separation(rates, joint)
+    s = slide_motion(pose, joint)["s"]
+    v = d["vx"] * ux + d["vy"] * uy
+    return sign * float(s[0]), sign * float(v[0])
 
 
 def _build_constraints(mechanism: Mechanism, model: Model) -> None:

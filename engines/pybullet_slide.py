@@ -25,8 +25,8 @@ Euler moves the joint coordinates by dt·q̇ with the step's new velocity, so
 the second central difference of the centre-of-mass positions,
 a_G(t_n) = (x_G(t_n+1) − 2·x_G(t_n) + x_G(t_n−1))/dt², is the step's
 velocity change over dt, centred at t_n (the difference of the world
-velocity readings over the step is stamped half a step late: measured
-O(dt) errors 4–10× larger); α_j = (ω_n+½ − ω_n−½)/dt likewise.
+velocity readings over the step is stamped half a step late, an O(dt)
+error); α_j = (ω_n+½ − ω_n−½)/dt likewise.
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-from mechval.mechanism import DRIVE_TORQUE, GROUND, Joint, Mechanism, rotate
+from mechval.kinematics import rotate
+from mechval.mechanism import DRIVE_TORQUE, GROUND, Joint, Mechanism
 
 #: What the run info says about each derived slide (users see that the
 #: column is derived, not read).

@@ -45,16 +45,17 @@ from mechval.signals import SIGNAL_CLASS, Signals, write_atomically
 #: BLAS/OpenMP thread, 4 Python threads in one process). A CI machine of the
 #: same kind could differ in the last bits (another libm or CPU dispatch;
 #: not measured, there is no second machine here): 1 ulp (2e-16) grown over
-#: a few thousand steps stays far below 1e-9, while MuJoCo 3.3.7 → 4.0.0
-#: moves the signals by 2e-3..6e-2 of their peak.
+#: a few thousand steps stays far below 1e-9, while an engine upgrade moves
+#: the signals by orders of magnitude more (tests/test_baselines.py checks
+#: it on the committed MuJoCo 3.3.7 and 4.0.0 baselines).
 DEFAULT_RTOL = 1e-9
 #: Absolute floor of the threshold (SI units). A signal that is identically
 #: zero in theory (α2 of a crank at constant speed) comes out as 0 (Exudyn)
-#: or as integration residue of 1e-7..1e-6 rad/s² (PyBullet, MuJoCo); its
-#: own peak is no scale for it, and 1e-9 of it (1e-16) would flag a change in
-#: the residue's last bits. 1e-12 is above the last bits of the quantities
-#: it derives from (1 ulp of an acceleration of 50 rad/s² is 7e-15) and far
-#: below a physical change.
+#: or as integration residue (PyBullet, MuJoCo; its size on the committed
+#: baselines: tests/test_baselines.py); its own peak is no scale for it, as
+#: 1e-9 of it would flag a change in the residue's last bits. 1e-12 is
+#: above the last bits of the quantities it derives from (1 ulp of an
+#: acceleration of 50 rad/s² is 7e-15) and far below a physical change.
 ABSOLUTE_FLOOR = 1e-12
 #: Accuracy against the reference counts as unchanged while the old and new
 #: max relative errors differ by less than this fraction of the old one; a

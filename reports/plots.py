@@ -27,7 +27,8 @@ from typing import Mapping
 import numpy as np
 from markupsafe import Markup
 
-from mechval.mechanism import GROUND, Mechanism, point_motion, rotate
+from mechval.kinematics import point_position, rotate
+from mechval.mechanism import GROUND, Mechanism
 from mechval.signals import SIGNAL_CLASS, Signals
 
 UNITS = {"angle": "rad", "position": "m", "velocity": "rad/s | m/s", "acceleration": "rad/s² | m/s²",
@@ -238,7 +239,7 @@ def mechanism_figure(mech: Mechanism, t_end: float, instants: int = 4) -> dict:
     for k in range(instants):
         name = f"t = {t[k]:.3g} s"
         for body in mech.bodies:
-            points = [point_motion(motion, body.name, j.point_j if j.body_j == body.name else j.point_i)
+            points = [point_position(motion, body.name, j.point_j if j.body_j == body.name else j.point_i)
                       for j in mech.joints if body.name in (j.body_i, j.body_j)]
             traces.append(dict(x=[float(p["x"][k]) for p in points], y=[float(p["y"][k]) for p in points],
                                mode="lines+markers", name=name, legendgroup=name,

@@ -24,7 +24,7 @@ from mechval.harness import baseline as bl
 from mechval.harness.baseline_run import check_run
 from mechval.harness.cli import main
 from mechval.engines import registry
-from mechval.engines.registry import ENGINE_NAMES, availability
+from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, availability
 from mechval.reports.build import provenance
 from mechval.harness.runner import tasks_for
 from mechval.outcome import Task
@@ -39,10 +39,24 @@ COMMITTED = sorted(p for p in ROOT.rglob("*.csv") if not p.name.endswith(".obtai
 CLI_SCENARIO = "slider-crank-damped"
 
 
+def baseline_tasks() -> list:
+    """Every built-in, not hard, scenario × engine × variant. An engine that
+    is not installed gives one case that skips with the reason (collecting
+    must not fail without it)."""
+    params = []
+    for engine in ENGINE_NAMES:
+        try:
+            tasks = tasks_for([builtin_scenario(n) for n in NOT_HARD], [engine])
+        except EngineUnavailable as exc:
+            params.append(pytest.param(None, id=f"{engine}-unavailable", marks=pytest.mark.skip(reason=str(exc))))
+            continue
+        params += [pytest.param(t, id=f"{t.scenario.name}-{t.engine}-{t.setting}") for t in tasks]
+    return params
+
+
 @pytest.mark.baseline
 @pytest.mark.engine
-@pytest.mark.parametrize("task", tasks_for([builtin_scenario(n) for n in NOT_HARD], ENGINE_NAMES),
-                         ids=lambda task: f"{task.scenario.name}-{task.engine}-{task.setting}")
+@pytest.mark.parametrize("task", baseline_tasks())
 def test_engine_matches_its_baseline(task, tmp_path):
     """Fails (never skips) when the installed engine version has no
     baseline: its message compares with the newest stored version and gives
@@ -55,6 +69,7 @@ def test_engine_matches_its_baseline(task, tmp_path):
     assert verdict == "ok", "\n" + text
 
 
+@pytest.mark.engine
 def test_missing_baseline_of_the_installed_version_fails_not_skips(any_engine, tmp_path, monkeypatch):
     """After an engine upgrade `-m baseline` must fail with the command that
     records the new version's baselines, not pass with nothing checked."""
@@ -134,6 +149,29 @@ def test_zero_signal_is_judged_by_the_absolute_floor():
     assert bl.regressed(bl.compare_to_baseline(zero, noise(10 * bl.ABSOLUTE_FLOOR)))
 
 
+def test_thresholds_tell_apart_what_they_must_on_the_committed_baselines():
+    """The reasons for DEFAULT_RTOL and ABSOLUTE_FLOOR, on the committed
+    data: an engine upgrade (MuJoCo 3.3.7 → 4.0.0) moves some signal of
+    every baseline by at least 1e-3 of its peak (measured 1.7e-3 to 6.3e-2),
+    ≥ 10⁶ × DEFAULT_RTOL; and α2 of a constant-speed crank, zero in theory,
+    is exactly 0 or an integration residue ≥ 1e-8 rad/s² (measured 9.2e-8 to
+    1.1e-5), ≥ 10⁴ × ABSOLUTE_FLOOR."""
+    old, new = ROOT / "mujoco" / "3.3.7", ROOT / "mujoco" / "4.0.0"
+    pairs = [(path, new / path.relative_to(old)) for path in sorted(old.rglob("*.csv"))]
+    assert pairs and all(after.exists() for _, after in pairs)
+    for before, after in pairs:
+        a, b = bl.load(before).signals, bl.load(after).signals
+        moved = max(np.nanmax(np.abs(b[c] - a[c])) / np.nanmax(np.abs(a[c])) for c in a.frame.columns[1:]
+                    if np.nanmax(np.abs(a[c])) > 0)
+        assert moved >= 1e6 * bl.DEFAULT_RTOL, before
+    steady = [p for p in COMMITTED if builtin_scenario(p.parent.name).drive.alpha == 0.0
+              and builtin_scenario(p.parent.name).drive.omega0 != 0.0]
+    assert steady
+    for path in steady:
+        residue = float(np.abs(bl.load(path).signals["alpha2"]).max())
+        assert residue == 0.0 or residue >= 1e4 * bl.ABSOLUTE_FLOOR, (path, residue)
+
+
 def test_changed_missing_values_samples_or_columns_are_regressions(stored):
     frame = stored.signals.frame
     name = frame.columns[-1]
@@ -191,6 +229,7 @@ def baseline_cli(*args: str) -> int:
     return main(["baseline", *args, CLI_SCENARIO, "--workers", "1"])
 
 
+@pytest.mark.engine
 def test_save_never_overwrites_without_force(any_engine, tmp_path, capsys):
     assert baseline_cli("save", "--engine", any_engine, "--dir", str(tmp_path)) == 0
     files = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
@@ -205,6 +244,7 @@ def test_save_never_overwrites_without_force(any_engine, tmp_path, capsys):
     assert "saved" in capsys.readouterr().out
 
 
+@pytest.mark.engine
 def test_check_without_baseline_fails_and_writes_nothing(any_engine, tmp_path, capsys):
     assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 1
     out = capsys.readouterr().out
@@ -212,6 +252,7 @@ def test_check_without_baseline_fails_and_writes_nothing(any_engine, tmp_path, c
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.engine
 def test_check_catches_and_explains_changes(any_engine, tmp_path, capsys):
     assert baseline_cli("save", "--engine", any_engine, "--dir", str(tmp_path)) == 0
     assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 0
@@ -251,6 +292,7 @@ def test_check_catches_and_explains_changes(any_engine, tmp_path, capsys):
     assert "verdict: OK" not in out
 
 
+@pytest.mark.engine
 def test_regression_stands_when_the_obtained_file_cannot_be_written(stored, tmp_path):
     meta = stored.meta
     engine_or_skip(meta["engine"])

@@ -105,6 +105,7 @@ def short_scene(tmp_path, extra: str = "") -> Path:
     return path
 
 
+@pytest.mark.engine
 @pytest.mark.parametrize("table,key,reason", [
     ("[engines.exudyn]\ntimestep = 0.0\n", "engines.exudyn.timestep", "must be positive"),
     ("[engines.exudyn]\ntimestep = 3e-3\n", "engines.exudyn.timestep", "0.003 s does not divide the sample interval"),

@@ -76,6 +76,7 @@ def test_scenario_examples_load_and_have_a_reference(text):
     assert list(reference.frame.columns) == list(signal_names(scenario.mechanism))
 
 
+@pytest.mark.engine
 @pytest.mark.parametrize("engine_name", ENGINE_NAMES)
 def test_scenario_examples_engine_settings_are_accepted(engine_name):
     engine = engine_or_skip(engine_name)
@@ -111,6 +112,7 @@ def test_tolerance_table_matches_the_defaults():
 ENGINE_TITLES = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "exudyn": "Exudyn"}
 
 
+@pytest.mark.engine
 @pytest.mark.parametrize("engine_name", ENGINE_NAMES)
 def test_every_engine_setting_is_documented(engine_name):
     """engines.md has a settings row per key, and the summary in

@@ -20,6 +20,8 @@ from mechval.scenario import EngineTable, ScenarioError
 from mechval.scenarios import builtin_path, parse
 from scenario_data import slider_crank
 
+pytestmark = pytest.mark.engine     # every test here needs the adapters' engine libraries
+
 #: Strings that would break or rewrite markup, a command line or a message.
 HOSTILE_STRINGS = ['q"uote', "it's", "<tag>", "a & b", "nul\x00byte", "new\nline"]
 #: Refused for every numeric setting: wrong types, non-finite, negative, huge.

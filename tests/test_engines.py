@@ -65,3 +65,17 @@ def test_turning_point_mass_meets_default_tolerances(engine_name, scene):
     assert all(m.izz == 0.0 for link, m in scenario.mass.items() if link in ("block", "rocker"))
     records = compare(simulate_reference(scenario), simulate(scenario, engine), scenario.tolerance, scenario=scene)
     assert passed(records), "\n" + format_records(records)
+
+
+@pytest.mark.parametrize("engine_name", ["reference", *(pytest.param(n, marks=pytest.mark.engine) for n in ENGINE_NAMES)])
+def test_raw_columns_are_the_ones_the_harness_reads(engine_name):
+    """A built-in adapter's raw frame holds t and the Mechanism's motion and
+    reaction columns, nothing more: those are what the canonical signals and
+    the run health read (an extra column would be read by nobody)."""
+    from mechval.linkages import build_mechanism
+    from mechval.scenarios import parse
+    scenario = parse(POINT_MASS_SCENES["slotted-lever-point-block"] | {"time": {"end": 0.1, "samples": 11}}, "x")
+    mechanism = build_mechanism(scenario)
+    engine = engine_or_skip(engine_name)
+    raw = engine.run(mechanism, scenario.time.t, engine.settings_for(scenario, mechanism))
+    assert sorted(raw.frame.columns) == sorted(["t", *mechanism.motion_columns(), *mechanism.reaction_columns()])

@@ -40,11 +40,13 @@ def update_message(m: Measurement) -> str:
             "and the workaround")
 
 
+@pytest.mark.engine
 def test_slide_sensor_finding_still_present(probes):
     m = probes.probe_slide_sensor()
     assert m.present and m.figure == pytest.approx(SLIDE_SENSOR_ERROR, rel=0.02), update_message(m)
 
 
+@pytest.mark.engine
 def test_slide_probe_exact_value_is_right(probes):
     reading = probes.rotating_slide()
     np.testing.assert_allclose(reading.alpha_closed_form, reading.alpha_engine, rtol=ALPHA)
@@ -58,11 +60,13 @@ def test_slide_probe_exact_value_is_right(probes):
     np.testing.assert_allclose(control.read, control.exact, rtol=CONTROL)
 
 
+@pytest.mark.engine
 def test_non_leaf_sensor_finding_still_present(probes):
     m = probes.probe_non_leaf_sensor()
     assert m.present and m.figure == pytest.approx(NON_LEAF_SENSOR_ERROR, rel=0.02), update_message(m)
 
 
+@pytest.mark.engine
 def test_non_leaf_probe_exact_value_is_right(probes):
     reading = probes.two_link_chain()
     np.testing.assert_allclose(reading.alpha_closed_form, reading.alpha_engine, rtol=ALPHA)
@@ -71,6 +75,7 @@ def test_non_leaf_probe_exact_value_is_right(probes):
     np.testing.assert_allclose(control.read, control.exact, rtol=CONTROL)
 
 
+@pytest.mark.engine
 def test_a_failing_probe_is_reported_not_raised(probes, monkeypatch):
     from mechval.engines.findings import measure_findings
 

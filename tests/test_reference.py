@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from conftest import BUILTIN, builtin_scenario
-from mechval.health import joint_gaps, power_balance
+from mechval.health import power_balance
+from mechval.kinematics import joint_gaps, point_motion
 from mechval.linkages import build_mechanism
-from mechval.mechanism import point_motion
 from mechval.reference import raw_reference, simulate_reference
 from mechval.newton_euler import assemble
 from mechval.scenarios import parse

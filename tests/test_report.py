@@ -224,6 +224,7 @@ def test_existing_report_folder_is_not_overwritten(tmp_path, scene):
         build.write_report(tmp_path / "run", [scene], {}, [], discrepancies([], {}))
 
 
+@pytest.mark.engine
 def test_cli_run_end_to_end(tmp_path):
     """The main job on one scene and two engines, as a user runs it; the
     report carries PyBullet's engine findings, measured."""

@@ -156,6 +156,7 @@ def engine_document(name: str, engine: str) -> dict:
 
 
 @pytest.mark.slow
+@pytest.mark.engine
 @pytest.mark.parametrize("engine", ENGINE_NAMES)
 def test_mutated_builtins_through_engines(capfd, tmp_path, engine):
     """As above, through an engine; an engine that fails on a valid scene

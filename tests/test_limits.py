@@ -93,6 +93,7 @@ def test_bounds_leave_the_builtins_and_their_neighbourhood_alone():
     parse(fourbar(drive={"phi0": -1e6 + 20.0}), "far.toml")
 
 
+@pytest.mark.engine
 def test_mass_that_crashed_mujoco_is_refused_and_the_bound_runs_in_mujoco():
     """A 1e-300 kg crank crashed MuJoCo's compiler (mass below mjMINVAL);
     the lightest accepted links run."""
@@ -156,6 +157,7 @@ def short_150(**time) -> dict:
     return data
 
 
+@pytest.mark.engine
 @pytest.mark.parametrize("engine", registry.ENGINE_NAMES)
 def test_long_runs_refused_with_the_step_count(engine):
     """end = 5000 s at 150 rad/s: within the angle bound, but every engine
@@ -169,6 +171,7 @@ def test_long_runs_refused_with_the_step_count(engine):
     check_run(scene, engine, limits=Limits(max_steps=1e9, max_memory=1e12))
 
 
+@pytest.mark.engine
 @pytest.mark.parametrize("engine,setting,value", [
     ("mujoco", "refine", 1000), ("pybullet", "preroll_steps", 100_000), ("exudyn", "pre_roll_steps", 100_000),
     ("exudyn", "timestep", 1e-12)])
@@ -185,6 +188,7 @@ def test_settings_that_multiply_steps_are_named(engine, setting, value):
     assert info.value.key == f"engines.{engine}.{setting}" and "steps" in info.value.reason
 
 
+@pytest.mark.engine
 def test_step_estimate_matches_the_engines_own_count():
     """The estimate from the settings is the count each engine reports
     (PyBullet's includes one step past the last sample, for its readings)."""

@@ -162,7 +162,10 @@ class EngineAdapter(ABC):
         """(steps per sample interval, steps before t = 0) a run with these
         settings takes, from the settings alone, as floats (an absurd
         setting gives inf rather than an overflow). By default: the step
-        setting, shortened to divide the sample interval; no pre-roll."""
+        setting, shortened to divide the sample interval; no pre-roll; an
+        adapter without a time step takes none."""
+        if not self.step_setting:
+            return 0.0, 0.0
         return steps_per_interval(times, as_float(settings[self.step_setting])), 0.0
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:

@@ -69,9 +69,6 @@ class ReferenceAdapter(EngineAdapter):
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
         return {}
 
-    def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
-        return 0.0, 0.0
-
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         return RawRun(raw_reference(mechanism, times), info=RunInfo(facts={"method": METHOD}))
 

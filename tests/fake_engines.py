@@ -44,9 +44,6 @@ class Stepless(_Fake):
     def default_settings(self, mechanism, times):
         return {}
 
-    def planned_steps(self, times, settings):
-        return 0.0, 0.0
-
     def run(self, mechanism, times, settings):
         return RawRun(raw_reference(mechanism, times))
 

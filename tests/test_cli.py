@@ -97,6 +97,18 @@ def test_simulate_reports_an_engine_error_on_one_line(tmp_path, monkeypatch, cap
     assert not csv.exists()
 
 
+def test_simulate_an_adapter_without_a_time_step(tmp_path, monkeypatch):
+    """No step setting (like the reference): its run size is no steps, and
+    it simulates (the run-size check once raised KeyError here)."""
+    from fake_engines import FAKES
+    from mechval.harness import cli
+    from mechval.engines import registry
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    csv = tmp_path / "out.csv"
+    assert cli.main(["simulate", "slider-crank", "--engine", "stepless", "--csv", str(csv)]) == 0
+    assert csv.exists()
+
+
 def short_scene(tmp_path, extra: str = "") -> Path:
     path = tmp_path / "short.toml"
     text = builtin_path("slider-crank").read_text(encoding="utf-8")

@@ -237,11 +237,27 @@ class Constraints:
             entries(rows, joints, self.bj, 1, w + "y"), entries(rows, joints, self.bi, 1, w + "y", -1.0)
             entries(rows, joints, self.bj, 2, w + "_arm_j"), entries(rows, joints, self.bi, 2, w + "_turn_i")
         self._template, self._groups = template, tuple(groups)
+        self._subsets: dict[tuple[int, ...], tuple] = {}
 
-    def jacobian(self, q: np.ndarray, f: dict | None = None) -> np.ndarray:
-        """Φq, shape (instants, m, n). For a row w·(Pj − Pi) the θ entries are
-        w·(ẑ × rj) and −w·(ẑ × ri) + ∂w/∂θi·d, the last −u·d for w = n and
-        n·d for w = u (w turns with body_i)."""
+    def _subset(self, rows: tuple[int, ...]) -> tuple:
+        """The template and groups of the Jacobian restricted to `rows`."""
+        if rows not in self._subsets:
+            n = self.n
+            new = np.full(self.m, -1)
+            new[list(rows)] = np.arange(len(rows))
+            template = self._template.reshape(self.m, n)[list(rows)].ravel()
+            groups = []
+            for flat, key, joints, sign in self._groups:
+                keep = new[flat // n] >= 0
+                if keep.any():
+                    groups.append((new[flat // n][keep] * n + (flat % n)[keep], key, joints[keep], sign))
+            self._subsets[rows] = (template, tuple(groups))
+        return self._subsets[rows]
+
+    def jacobian(self, q: np.ndarray, f: dict | None = None, rows: tuple[int, ...] | None = None) -> np.ndarray:
+        """Φq, shape (instants, m, n), or only the given rows. For a row
+        w·(Pj − Pi) the θ entries are w·(ẑ × rj) and −w·(ẑ × ri) + ∂w/∂θi·d,
+        the last −u·d for w = n and n·d for w = u (w turns with body_i)."""
         f = f or self.frames(q)
         ux, uy, dx, dy = f["ux"], f["uy"], f["dx"], f["dy"]
         nx, ny = -uy, ux
@@ -250,11 +266,13 @@ class Constraints:
                       n_arm_j=arm(nx, ny, f["rxj"], f["ryj"]), u_arm_j=arm(ux, uy, f["rxj"], f["ryj"]),
                       n_turn_i=-arm(nx, ny, f["rxi"], f["ryi"]) - (ux * dx + uy * dy),
                       u_turn_i=-arm(ux, uy, f["rxi"], f["ryi"]) + (nx * dx + ny * dy))
-        J = np.empty((len(q), self.m * self.n))
-        J[:] = self._template
-        for flat, key, joints, sign in self._groups:
+        template, groups = (self._template, self._groups) if rows is None else self._subset(rows)
+        count = len(template) // self.n
+        J = np.empty((len(q), count * self.n))
+        J[:] = template
+        for flat, key, joints, sign in groups:
             J[:, flat] = sign * values[key][:, joints]
-        return J.reshape(len(q), self.m, self.n)
+        return J.reshape(len(q), count, self.n)
 
     def velocity_rhs(self, t: np.ndarray) -> np.ndarray:
         """−Φt, shape (instants, m): the drives' rates φ̇(t)."""

@@ -12,7 +12,7 @@ followed through a run (the sequential part of `mechval.planar_solver`).
    (e.g. a parallelogram's third crank): no fixed subset of rows could
    stand in for them over a whole run (the one left out may be the only
    one that holds a body at some instant), so redundant mechanisms are
-   solved by least squares on all rows (`mechval.planar_linear`).
+   solved by least squares on all rows (`mechval.planar_tree`).
 3. **Continuation**: nodes marched from t0 to the last instant, each one
    Newton-solved from the Taylor predictor q + h·q̇ + ½h²·q̈ of the node
    before, the step adapted to keep that predictor within `DELTA_TARGET`
@@ -43,7 +43,7 @@ RANK_TOL = 1e-9
 #: Scaled size of the Taylor predictor's error the continuation aims for:
 #: the quintic Hermite predictor between nodes is then within ~1e-8, so
 #: the batched correction converges in two or three iterations.
-DELTA_TARGET = 1e-2
+DELTA_TARGET = 1e-3
 #: A node whose Newton correction exceeds this (scaled) is retried with a
 #: shorter step: it may have crossed to another branch.
 DELTA_MAX = 5e-2
@@ -84,6 +84,7 @@ class Scaling:
     def __init__(self, c: Constraints, size: float):
         self.size = size
         self.column = np.where(c.column_is_angular(), 1.0, size)     # q = Dc·z
+        self.inverse_column = 1.0 / self.column
         self.row = np.where(c.row_is_angular(), 1.0, 1.0 / size)
 
     def jacobian(self, J: np.ndarray) -> np.ndarray:
@@ -91,13 +92,13 @@ class Scaling:
 
     def step(self, dq: np.ndarray) -> np.ndarray:
         """Largest scaled component of each instant's step (instants,)."""
-        return np.abs(dq / self.column).max(axis=-1)
+        return np.abs(dq * self.inverse_column).max(axis=-1)
 
     def tolerance(self, q: np.ndarray) -> np.ndarray:
         """The fixed point: a scaled step within rounding of the instant's
         largest scaled coordinate (at least 1: lengths near L, angles near
         a radian; an angle of many turns carries a larger ulp)."""
-        return ROUNDING * np.maximum(np.abs(q / self.column).max(axis=-1), 1.0)
+        return ROUNDING * np.maximum(np.abs(q * self.inverse_column).max(axis=-1), 1.0)
 
 
 def initial_guess(c: Constraints, pose: Mapping[str, BodyPose]) -> np.ndarray:

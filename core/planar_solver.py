@@ -3,17 +3,19 @@ prismatic joints, drives and force elements, solved numerically.
 
 Absolute coordinates q = (x, y, θ) of every moving body's centre of mass,
 constraints Φ(q, t) = 0 (`mechval.planar_constraints`), applied forces Q
-(`mechval.planar_forces`), positions by continuation and Newton
-(`mechval.planar_positions`). At every requested instant, in batches:
+(`mechval.planar_forces`), assembly and the branch followed by continuation
+(`mechval.planar_positions`). At every requested instant, in batches of
+`CHUNK` instants (on a thread per core: numpy releases the GIL):
 
-- positions: Newton on the selected rows from the continuation's quintic
-  Hermite predictor, with the inverse Jacobian at the predictor (chord
-  iterations), until the step is within rounding of q (a fixed point);
-- velocities Φq·q̇ = −Φt and accelerations Φq·q̈ = γ, then the multipliers
-  from M·q̈ + Φqᵀ·λ = Q: each a linear solve with that same inverse,
-  refined against the Jacobian at the solution until the correction is
-  within rounding (iterative refinement), so one inversion per instant
-  serves all four solves.
+- positions: Newton from the continuation's quintic Hermite predictor,
+  with Φq eliminated once at the prediction (chord iterations), until the
+  step is within rounding of q (a fixed point);
+- velocities Φq·q̇ = −Φt, accelerations Φq·q̈ = γ, then the multipliers from
+  M·q̈ + Φqᵀ·λ = Q: three solves with Φq eliminated at the solution.
+Every solve with Φq goes through its elimination along a spanning tree of
+revolute joints (`mechval.planar_tree`): a sweep from the ground out, one
+small dense solve per instant (3×3 for a four-bar, 7×7 for Andrews'
+squeezer, all instants at once) and a sweep back.
 
 Which λ is which (constraint forces are −Φqᵀ·λ, Nikravesh 1988, ch. 6):
 - revolute joint, rows Pj − Pi: its reaction, the force BY body_i ON body_j
@@ -44,17 +46,23 @@ import pandas as pd
 from .mechanism import MOTION_QUANTITIES, BodyPose, Mechanism
 from .planar_constraints import Constraints, MechanismError
 from .planar_forces import AppliedForces, mass_diagonal
-from .planar_linear import REFINEMENTS, Inverse, matvec, settled, solve_one
+from .planar_linear import settled, solve_one
 from .planar_positions import Nodes, Scaling, Structure, assemble, march, mechanism_size
+from .planar_tree import Factor, Tree
 
-#: Instants per batch: bounds memory (a batch holds a few n×n matrices per instant).
-CHUNK = 1 << 14
-#: Scaled Jacobian condition number (∞-norm) above which an instant is
-#: refused as singular: results there would carry errors of cond·eps ≈ 2e-6.
+#: Instants per batch: bounds memory and keeps a batch's arrays in cache
+#: (measured: 2^12–2^14 alike on the four-bar, 2^13 best on Andrews).
+CHUNK = 1 << 13
+#: Chord iterations before an instant that has not settled gets a fresh elimination.
+CHORD_ITERATIONS = 12
+#: Condition number (∞-norm) of the scaled reduced Jacobian K above which
+#: an instant is refused as singular: results there would carry errors of
+#: cond·eps ≈ 2e-6. K is singular exactly where Φq is (the elimination's
+#: pivots are ±1).
 SINGULAR_CONDITION = 1e10
-#: A λ row counts as undetermined where the projector onto the null space
-#: of Φqᵀ (scaled) has a diagonal entry above this: exactly 0 for a
-#: determined row, computed to ~cond²·eps.
+#: A λ row counts as undetermined where a null vector of Φqᵀ (scaled)
+#: reaches it by more than this fraction of its largest entry: exactly 0
+#: for a determined row, computed to ~cond²·eps.
 UNIQUE_TOL = 1e-8
 #: A corrected position further than this (scaled) from its prediction
 #: means the batch may have left the branch the continuation followed.
@@ -92,6 +100,8 @@ class PlanarSolver:
         self.forces = AppliedForces(self.c)
         self.mass = mass_diagonal(mech)
         self.scaling = Scaling(self.c, mechanism_size(mech))
+        self.tree = Tree.of(self.c)
+        self.cut_rows = tuple(int(r) for r in self.tree.cut)
 
     # -- one instant (the continuation's nodes) -----------------------------------------------
 
@@ -105,29 +115,35 @@ class PlanarSolver:
 
     # -- batches --------------------------------------------------------------------------------
 
-    def _correct(self, q: np.ndarray, B: Inverse, t: np.ndarray, f: dict) -> tuple[np.ndarray, dict]:
-        """Chord Newton iterations q ← q − B·Φ(q, t) to the fixed point (a
-        scaled step within rounding of q); instants that do not settle get
-        full Newton steps. `f` are the frames of q; returns the solution and
-        the frames of the last iterate evaluated, one rounding-level step
-        before it (used for Φq and γ there: they differ by ~eps)."""
+    def _factor(self, q: np.ndarray, f: dict, t: np.ndarray) -> Factor:
+        """The tree elimination of Φq at q (frames f)."""
+        J_cut = self.c.jacobian(q, f, self.cut_rows)
+        return Factor(self.c, self.tree, f, J_cut, self.scaling.row, self.scaling.column, t)
+
+    def _correct(self, q: np.ndarray, factor: Factor, t: np.ndarray, f: dict) -> tuple[np.ndarray, dict]:
+        """Chord Newton iterations q ← q − B·Φ(q, t), B the elimination at
+        the prediction, to the fixed point (a scaled step within rounding
+        of q); instants that do not settle get a fresh elimination. `f` are
+        the frames of q; returns the solution and the frames of the last
+        iterate evaluated, one rounding-level step before it (used for Φq
+        and γ there: they differ by ~eps)."""
         scaling = self.scaling
         previous = np.full(len(q), np.inf)
-        for it in range(2 * REFINEMENTS):
-            if it == REFINEMENTS:   # slow to settle: Newton with fresh Jacobians from here
-                B = Inverse(self.c.jacobian(q), scaling.row, scaling.column, t)
+        floor = scaling.tolerance(q)     # the Newton steps change q far less than its rounding scale
+        for it in range(2 * CHORD_ITERATIONS):
             if it:
                 f = self.c.frames(q)
-            dq = -B.apply(self.c.residual(q, t, f))
+            if it == CHORD_ITERATIONS:   # slow to settle: Newton with fresh Jacobians from here
+                factor = self._factor(q, f, t)
+            dq = -factor.solve(self.c.residual(q, t, f))
             q += dq
             size = scaling.step(dq)
-            done = settled(size, previous, scaling.tolerance(q))
+            done = settled(size, previous, floor)
             if done.all():
                 return q, f
             previous = size
         k = int(np.flatnonzero(~done)[0])
-        condition = Inverse(self.c.jacobian(q[k:k + 1]), scaling.row, scaling.column, t[k:k + 1]).condition(
-            self.c.jacobian(q[k:k + 1]))[0][0]
+        condition = self._factor(q[k:k + 1], self.c.frames(q[k:k + 1]), t[k:k + 1]).condition()[0]
         raise MechanismError("time", f"the loop cannot close at t = {t[k]:.6g} s: Newton does not settle (last "
                                      f"step {size[k]:.3g}, scaled by the size {scaling.size:.3g} m; Jacobian "
                                      f"condition there {condition:.3g}, singular above {SINGULAR_CONDITION:.0e})")
@@ -136,25 +152,18 @@ class PlanarSolver:
         c, scaling = self.c, self.scaling
         predicted = nodes.predict(t)
         f = c.frames(predicted)
-        B = Inverse(c.jacobian(predicted, f), scaling.row, scaling.column, t)
-        q, f = self._correct(predicted.copy(), B, t, f)
+        q, f = self._correct(predicted.copy(), self._factor(predicted, f, t), t, f)
         jump = scaling.step(q - predicted)
         if jump.max() > BRANCH_JUMP:
             k = int(np.argmax(jump))
             raise MechanismError("time", f"at t = {t[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from the "
                                          "continuation's prediction: a branch point or near-singular position")
-        J = c.jacobian(q, f)
-        condition, norm_B = B.condition(J)
-        # ‖I − B·J‖ ≤ ‖B‖·‖J(q0) − J(q)‖, and a scaled Jacobian entry moves
-        # by at most ~2 per unit of scaled displacement (arms up to 2L), so a
-        # row sum by 2n times the jump.
-        rate = norm_B * 2 * c.n * jump
-        v = B.refine(J, c.velocity_rhs(t), 1 / scaling.column, rate)
-        a = B.refine(J, c.gamma(q, v, t, f), 1 / scaling.column, rate)
-        force = self.forces.generalised(q, v, f) - self.mass * a
-        lam = B.refine(J, force, 1 / scaling.row, rate, transpose=True)
-        return dict(q=q, v=v, a=a, lam=lam, condition=condition, frames=f,
-                    undetermined=B.undetermined(J, UNIQUE_TOL))
+        factor = self._factor(q, f, t)
+        v = factor.solve(c.velocity_rhs(t))
+        a = factor.solve(c.gamma(q, v, t, f))
+        lam = factor.solve_transposed(self.forces.generalised(q, v, f) - self.mass * a)
+        return dict(q=q, v=v, a=a, lam=lam, condition=factor.condition(), frames=f,
+                    undetermined=factor.undetermined(scaling.row, UNIQUE_TOL))
 
     # -- the run --------------------------------------------------------------------------------
 

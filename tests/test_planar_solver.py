@@ -411,3 +411,45 @@ def test_the_fourbar_closure_limit_matches_the_closed_form():
     limit = np.arccos((a * a + d * d - (b + c) ** 2) / (2 * a * d))   # s = b + c
     error = refusal(mech, np.linspace(0.0, 3.0, 301), pose)
     assert limit - 0.05 <= named_time(error) <= limit
+
+
+# -- the linear algebra ----------------------------------------------------------------------------
+
+ELIMINATED = {"fourbar-seed": lambda: build_mechanism(builtin_scenario("fourbar-seed")),
+              "hand-pump": lambda: build_mechanism(builtin_scenario("hand-pump")),
+              "andrews": A.andrews_mechanism, **SELF_CHECKED}
+
+
+@pytest.mark.parametrize("name", sorted(ELIMINATED))
+def test_tree_elimination_solves_like_a_dense_solve(name):
+    """Solves through the spanning-tree elimination equal numpy's dense
+    solves with the whole Jacobian (least squares where rows are
+    redundant), at arbitrary configurations (the elimination is exact
+    algebra: it does not need the joints closed)."""
+    from mechval.planar_solver import PlanarSolver
+    solver = PlanarSolver(ELIMINATED[name]())
+    c = solver.c
+    rng = np.random.default_rng(7)
+    q = rng.normal(scale=0.3, size=(6, c.n)) + np.tile([0.1, 0.1, 0.5], c.n // 3)
+    frames = c.frames(q)
+    J = c.jacobian(q, frames)
+    factor = solver._factor(q, frames, np.zeros(len(q)))
+    r = matmul_rows(J, rng.normal(size=(len(q), c.n)))            # consistent even with redundant rows
+    f = rng.normal(size=(len(q), c.n))
+    x, lam = factor.solve(r), factor.solve_transposed(f)
+    scale = lambda a: np.abs(a).max()
+    assert np.abs(matmul_rows(J, x) - r).max() <= 1e-12 * scale(r) * factor.condition().max()
+    assert np.abs(matmul_rows(J.transpose(0, 2, 1), lam) - f).max() <= 1e-12 * scale(f) * factor.condition().max()
+
+
+def matmul_rows(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return (A @ x[..., None])[..., 0]
+
+
+@pytest.mark.parametrize("size", [1, 2, 3, 4])
+def test_small_inverses(size):
+    from mechval.planar_linear import inverse
+    rng = np.random.default_rng(size)
+    A = rng.normal(size=(200, size, size)) + 2 * np.eye(size)
+    residual = np.abs(A @ inverse(A) - np.eye(size)).max(axis=(1, 2))
+    assert (residual <= 4 * np.finfo(float).eps * np.linalg.cond(A)).all()

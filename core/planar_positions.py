@@ -243,8 +243,12 @@ def newton(c: Constraints, scaling: Scaling, q: np.ndarray, t: float) -> tuple[n
 
 
 def march(c: Constraints, scaling: Scaling, q0: np.ndarray, t0: float, t_end: float,
-          rates: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]) -> Nodes:
-    """Continuation nodes from (t0, q0) to t_end; `rates(q, t)` gives q̇, q̈."""
+          rates: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+          delta_target: float = DELTA_TARGET) -> Nodes:
+    """Continuation nodes from (t0, q0) to t_end; `rates(q, t)` gives q̇, q̈.
+    A larger `delta_target` (up to DELTA_MAX / 5) follows the branch with
+    fewer nodes, too far apart for the batch's predictor but enough to
+    check that the loop closes all along."""
     q = q0[None]
     t = t0
     v, a = rates(q, np.array([t]))
@@ -273,5 +277,5 @@ def march(c: Constraints, scaling: Scaling, q0: np.ndarray, t0: float, t_end: fl
         q = solved
         v, a = rates(q, np.array([t]))
         ts.append(t), qs.append(q[0]), vs.append(v[0]), as_.append(a[0])
-        h *= min(2.0, max(0.3, 0.9 * (DELTA_TARGET / max(delta, 1e-300)) ** (1 / 3)))
+        h *= min(2.0, max(0.3, 0.9 * (delta_target / max(delta, 1e-300)) ** (1 / 3)))
     return Nodes(np.array(ts), np.array(qs), np.array(vs), np.array(as_))

@@ -53,6 +53,9 @@ from .planar_tree import Factor, Tree
 #: Instants per batch: bounds memory and keeps a batch's arrays in cache
 #: (measured: 2^12–2^14 alike on the four-bar, 2^13 best on Andrews).
 CHUNK = 1 << 13
+#: `check`'s continuation aims at this Taylor error (scaled): nodes about
+#: twice as far apart as a solve's, enough to follow the branch.
+CHECK_DELTA = 1e-2
 #: Chord iterations before an instant that has not settled gets a fresh elimination.
 CHORD_ITERATIONS = 12
 #: Condition number (∞-norm) of the scaled reduced Jacobian K above which
@@ -79,6 +82,8 @@ class PlanarSolution:
     missing: Mapping[str, str]
     structure: Structure
     facts: Mapping[str, Any] = field(default_factory=dict)
+    #: Per instant, the condition number of the scaled reduced Jacobian.
+    condition: np.ndarray | None = field(default=None, repr=False)
 
 
 def default_pose(mech: Mechanism, t0: float) -> dict[str, BodyPose]:
@@ -106,9 +111,14 @@ class PlanarSolver:
     # -- one instant (the continuation's nodes) -----------------------------------------------
 
     def _rates(self, q: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """q̇ and q̈ at a node; refuses a node where Φq is singular."""
         f = self.c.frames(q)
         J = self.c.jacobian(q, f)[0]
         row, col = self.scaling.row, self.scaling.column
+        condition = np.linalg.cond(J * row[:, None] * col[None, :])
+        if not condition <= SINGULAR_CONDITION:
+            raise MechanismError("time", f"the Jacobian is singular at t = {t[0]:.6g} s (condition {condition:.3g} > "
+                                         f"{SINGULAR_CONDITION:.0e}): a toggle or dead-centre position")
         v = solve_one(J, self.c.velocity_rhs(t)[0], row, col)[None]
         a = solve_one(J, self.c.gamma(q, v, t, f)[0], row, col)[None]
         return v, a
@@ -167,6 +177,14 @@ class PlanarSolver:
 
     # -- the run --------------------------------------------------------------------------------
 
+    def check(self, t0: float, t_end: float, pose: Mapping[str, BodyPose] | None = None) -> Structure:
+        """Assemble at t0 and follow the mechanism to t_end (the
+        continuation alone, no batch): raises MechanismError where `solve`
+        would for want of mobility, assembly or closure."""
+        q0, found = assemble(self.c, self.scaling, pose or default_pose(self.mech, t0), t0)
+        march(self.c, self.scaling, q0, t0, t_end, self._rates, delta_target=CHECK_DELTA)
+        return found
+
     def solve(self, t: np.ndarray, pose: Mapping[str, BodyPose] | None = None) -> PlanarSolution:
         """Raw motion and reaction columns at instants t (nondecreasing)."""
         t = np.asarray(t, dtype=float)
@@ -198,7 +216,7 @@ class PlanarSolver:
         facts = {"method": METHOD, "grubler": found.grubler, "mobility": found.mobility, "rank": found.rank,
                  "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
                  "continuation_nodes": len(nodes.t)}
-        return PlanarSolution(pd.DataFrame(table.T, columns=columns, copy=False), missing, found, facts)
+        return PlanarSolution(pd.DataFrame(table.T, columns=columns, copy=False), missing, found, facts, condition)
 
     def _columns(self, out: Mapping[str, np.ndarray]) -> np.ndarray:
         """Motion of every body frame (origin O = G − R·com) and reactions."""

@@ -46,7 +46,8 @@ def main() -> None:
     for label, raw, q, qddot, lam, qdot in rows:
         figures = {
             "angles (rad)": np.abs(A.test_set_coordinates(raw)[:, 0] - q).max(),
-            "accelerations (rel.)": np.abs(A.test_set_coordinates(raw, "alpha")[:, 0] - qddot).max() / np.abs(qddot).max(),
+            "accelerations (rel.)": np.abs(A.test_set_coordinates(raw, "alpha")[:, 0] - qddot).max()
+            / np.abs(qddot).max(),
             "torque vs mom (rel.)": abs(raw["drive.T"].iloc[0] - A.mom) / A.mom,
             "λ (rel.)": np.abs(lambdas(raw) - lam).max() / np.abs(lam).max(),
         }

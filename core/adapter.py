@@ -81,6 +81,26 @@ class Unrepresentable(ValueError):
         return type(self), (self.key, self.reason)
 
 
+#: What a planar file may ask for beyond one revolute drive, gravity and
+#: joint dampers (`mechanism_features`); an adapter lists in `features`
+#: those it builds, and is refused the others before it runs.
+FEATURES = ("several drives", "a prismatic drive", "spring-dampers", "body torques")
+
+
+def mechanism_features(mechanism: Mechanism) -> dict[str, str]:
+    """The FEATURES a mechanism uses, each with the scenario key that asks
+    for it."""
+    used: dict[str, str] = {}
+    if mechanism.extra_drives:
+        used["several drives"] = "drive"
+    for drive in mechanism.drives:
+        if mechanism.joint(drive.joint).kind == "prismatic":
+            used.setdefault("a prismatic drive", "drive")
+    for force in mechanism.forces:
+        used.setdefault("body torques" if hasattr(force, "torque") else "spring-dampers", f"force.{force.name}")
+    return used
+
+
 class EngineAdapter(ABC):
     name: ClassVar[str]
     #: The import name of the engine library, and its distribution on PyPI.
@@ -108,6 +128,8 @@ class EngineAdapter(ABC):
     bytes_per_step: ClassVar[int] = 1600
     cost_ladder: ClassVar[tuple[float, ...]] = (0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
+    #: The FEATURES this adapter builds (none yet for the engines).
+    features: ClassVar[frozenset[str]] = frozenset()
 
     @classmethod
     def unavailable_reason(cls) -> str:

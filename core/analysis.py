@@ -138,6 +138,9 @@ def _refuse_nonfinite(scenario: Scenario, t: np.ndarray, values: np.ndarray, key
 
 
 def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
+    if scenario.mechanism == "planar":
+        from .planar_analysis import analyse_planar     # imports the general reference
+        return analyse_planar(scenario, samples)
     geometry = scenario.geometry
     module = linkage(scenario.mechanism)
     t = np.linspace(0.0, scenario.time.end, samples or max(scenario.time.samples, 2001))
@@ -187,6 +190,9 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
 
 
 def format_analysis(a: Analysis, max_toggles: int = 12) -> str:
+    if not isinstance(a, Analysis):
+        from .planar_analysis import format_planar_analysis
+        return format_planar_analysis(a, max_toggles)
     lines = [
         f"scenario            {a.scenario} ({a.mechanism})",
         f"Grashof             {a.grashof}",

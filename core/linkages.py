@@ -19,5 +19,9 @@ def linkage(kind: str) -> ModuleType:
 
 
 def build_mechanism(scenario: Scenario) -> Mechanism:
-    """The generic `Mechanism` of a validated scenario."""
+    """The generic `Mechanism` of a validated scenario (a planar file's
+    from its bodies and joints, `mechval.planar_scene`)."""
+    if scenario.mechanism == "planar":
+        from .planar_scene import build_mechanism as build_planar   # imports the solver: only when needed
+        return build_planar(scenario)
     return LINKAGES[scenario.mechanism].build_mechanism(scenario)

@@ -16,6 +16,13 @@ Frames and conventions (docs/conventions.md):
 - The drive acts at a revolute joint; its torque `T` acts on that joint's
   body_j (the crank) and −T on body_i.
 
+The general reference (`mechval.planar_solver`) also reads what the four
+closed-form kinds leave at their defaults: further drives (a revolute drive
+prescribes the relative angle θj − θi, a prismatic drive the slide s along
+the axis, both by a `DriveLaw`; a prismatic drive's effort is a force `F`
+along the axis on body_j), force elements (`SpringDamper`, `BodyTorque`)
+and an approximate assembly pose that picks the branch.
+
 Raw columns (`motion_columns`, `reaction_columns`) name what adapters and
 the reference report: "crank.theta", "A.Fx", "drive.T", ...
 """
@@ -67,14 +74,69 @@ class Joint:
     point_j: Vec2
     axis: Vec2 = (1.0, 0.0)
     damping: float = 0.0
+    #: Prismatic only: the relative angle θj − θi the joint holds (rad).
+    #: None: the angle of `axis` in body_i's frame, i.e. body_j's x axis
+    #: lies along the slide (as every closed-form builder sets its frames).
+    angle: float | None = None
+
+    @property
+    def held_angle(self) -> float:
+        """θj − θi of a prismatic joint (see `angle`)."""
+        return float(np.arctan2(self.axis[1], self.axis[0])) if self.angle is None else self.angle
 
 
 @dataclass(frozen=True)
 class Drive:
-    """The prescribed rotation of `joint` (body_j relative to body_i)."""
+    """The prescribed motion of `joint` (body_j relative to body_i): the
+    relative angle θj − θi of a revolute joint, or the slide s = (Pj − Pi)·u
+    of a prismatic one (u the axis in world axes), equal to `law`'s φ(t).
+
+    Its effort, torque T (revolute) or force F along u (prismatic) on body_j
+    and the opposite on body_i, is the raw column "NAME.T" or "NAME.F".
+    """
 
     joint: str
     law: DriveLaw
+    name: str = "drive"
+
+    def effort_column(self, kind: str) -> str:
+        return f"{self.name}.T" if kind == "revolute" else f"{self.name}.F"
+
+
+@dataclass(frozen=True)
+class SpringDamper:
+    """A linear spring-damper between point_a of body_a and point_b of
+    body_b (body frames; world for the ground): tension
+    stiffness·(ℓ − free_length) + damping·dℓ/dt along the line between
+    them (N/m, m, N·s/m), pulling the points together when positive."""
+
+    name: str
+    body_a: str
+    point_a: Vec2
+    body_b: str
+    point_b: Vec2
+    stiffness: float
+    free_length: float
+    damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class BodyTorque:
+    """A constant torque (N·m, about +z) on a body."""
+
+    name: str
+    body: str
+    torque: float
+
+
+@dataclass(frozen=True)
+class BodyPose:
+    """An approximate pose of a body's frame at t = 0: its angle (rad) and,
+    optionally, its origin (m). It only picks the assembly branch."""
+
+    theta: float
+    x: float | None = None
+    y: float | None = None
 
 
 @dataclass(frozen=True)
@@ -97,12 +159,23 @@ class Mechanism:
     #: constant on one branch and flips only when the loop changes branch.
     assembly: Callable[[Mapping[str, np.ndarray]], np.ndarray] | None = field(
         default=None, repr=False, compare=False)
+    #: Drives after the first (`drive`), for mechanisms of several degrees
+    #: of freedom; each needs its own `name`.
+    extra_drives: tuple[Drive, ...] = ()
+    #: Force elements besides gravity and joint dampers.
+    forces: tuple[SpringDamper | BodyTorque, ...] = ()
+    #: Approximate pose per body at t = 0 (picks the assembly branch).
+    assembly_pose: Mapping[str, BodyPose] = field(default_factory=dict, repr=False, compare=False)
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
 
     def joint(self, name: str) -> Joint:
         return next(j for j in self.joints if j.name == name)
+
+    @property
+    def drives(self) -> tuple[Drive, ...]:
+        return (self.drive, *self.extra_drives)
 
     @property
     def has_gravity(self) -> bool:
@@ -121,5 +194,5 @@ class Mechanism:
             columns += [f"{j.name}.Fx", f"{j.name}.Fy"]
             if j.kind == "prismatic":
                 columns.append(f"{j.name}.M")
-        return columns + [DRIVE_TORQUE]
+        return columns + [d.effort_column(self.joint(d.joint).kind) for d in self.drives]
 

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from . import __version__
-from .adapter import EngineAdapter, RawRun, RunInfo
+from .adapter import FEATURES, EngineAdapter, RawRun, RunInfo, Unrepresentable
 from .linkages import build_mechanism
 from .mechanism import Mechanism
 from .newton_euler import reaction_values
@@ -61,6 +61,7 @@ class ReferenceAdapter(EngineAdapter):
     step_settings = ()
     output_copies = 8
     bytes_per_step = 0
+    features = frozenset(FEATURES)
 
     @classmethod
     def version(cls) -> str:
@@ -70,6 +71,13 @@ class ReferenceAdapter(EngineAdapter):
         return {}
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.kind == "planar":     # no closed form: the general reference
+            from .planar_solver import MechanismError, raw_planar
+            try:
+                solution = raw_planar(mechanism, times)
+            except MechanismError as exc:
+                raise Unrepresentable(exc.key, exc.reason) from None
+            return RawRun(solution.frame, solution.missing, RunInfo(facts=dict(solution.facts)))
         return RawRun(raw_reference(mechanism, times), info=RunInfo(facts={"method": METHOD}))
 
 

@@ -117,6 +117,9 @@ class Scenario:
     engines: Mapping[str, EngineTable] = field(default_factory=dict)
     tags: tuple[str, ...] = ()
     source: Path | None = None
+    #: A planar file's bodies, joints, drives, forces and assembly pose
+    #: (`mechval.planar_scene.PlanarScene`); None for the four kinds.
+    planar: Any = None
 
     def tolerance_for(self, engine: str | None) -> Tolerance:
         """The scenario's tolerance with the engine's overrides applied."""

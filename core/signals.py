@@ -37,8 +37,40 @@ MECHANISM_SIGNALS = {
     "inverted_slider": ("theta4", "omega4", "alpha4", "s34", "v34", "a34", "F14x", "F14y", "N43", "M43"),
 }
 
+
+class SignalClasses(dict):
+    """Signal name → tolerance class: the four kinds' names as listed, and
+    the names of planar files by their quantity (`PLANAR_CLASS`): BODY.theta,
+    JOINT.Fx, DRIVE.T, … (docs/conventions.md)."""
+
+    def _planar(self, name: str) -> str | None:
+        head, dot, quantity = name.rpartition(".")
+        return PLANAR_CLASS.get(quantity) if dot and head else None
+
+    def __missing__(self, name: str) -> str:
+        cls = self._planar(name) if isinstance(name, str) else None
+        if cls is None:
+            raise KeyError(name)
+        return cls
+
+    def __contains__(self, name) -> bool:
+        return dict.__contains__(self, name) or (isinstance(name, str) and self._planar(name) is not None)
+
+    def get(self, name, default=None):
+        return self[name] if name in self else default
+
+
+#: Tolerance class of each quantity of a planar file's signals: per body
+#: its angle and its centre of mass's motion, per joint its reaction (a
+#: prismatic joint adds its normal force N and couple M), per drive its
+#: torque T or force F.
+PLANAR_CLASS = {"theta": "angle", "omega": "velocity", "alpha": "acceleration",
+                "x": "position", "y": "position", "vx": "velocity", "vy": "velocity",
+                "ax": "acceleration", "ay": "acceleration",
+                "Fx": "force", "Fy": "force", "N": "force", "M": "torque", "T": "torque", "F": "force"}
+
 #: Tolerance class of each signal (keys of a scenario's [tolerance] table).
-SIGNAL_CLASS = {
+SIGNAL_CLASS = SignalClasses({
     **{f"theta{k}": "angle" for k in (2, 3, 4)},
     **{f"omega{k}": "velocity" for k in (2, 3, 4)},
     **{f"alpha{k}": "acceleration" for k in (2, 3, 4)},
@@ -46,12 +78,20 @@ SIGNAL_CLASS = {
     **{f"F{ij}{c}": "force" for ij in ("12", "32", "43", "14") for c in "xy"},
     "T12": "torque",
     "s34": "position", "v34": "velocity", "a34": "acceleration", "N43": "force", "M43": "torque",
-}
+})
 
 
 def signal_names(kind: str) -> tuple[str, ...]:
     """Canonical column order for a mechanism kind (docs/conventions.md)."""
     return COMMON_SIGNALS + MECHANISM_SIGNALS[kind]
+
+
+def mechanism_signal_names(mechanism: Mechanism) -> tuple[str, ...]:
+    """Canonical column order for a mechanism: its kind's, or for a planar
+    file the order of its signal map (bodies, joints, drives)."""
+    if mechanism.kind in MECHANISM_SIGNALS:
+        return signal_names(mechanism.kind)
+    return ("t", *mechanism.signal_map)
 
 
 @dataclass(frozen=True)
@@ -111,9 +151,10 @@ def canonical_signals(
     kept and reported as such, so a blow-up is never mistaken for a gap.
     """
     raw, missing = with_slide_columns(mechanism, raw, dict(missing or {}))
+    raw = with_com_columns(mechanism, raw)
     columns = {"t": raw["t"].to_numpy()}
     reasons = {}
-    for name in signal_names(mechanism.kind)[1:]:
+    for name in mechanism_signal_names(mechanism)[1:]:
         raw_name = mechanism.signal_map[name]
         values = raw[raw_name].to_numpy(dtype=float) if raw_name in raw else np.full(len(raw), np.nan)
         columns[name] = values
@@ -133,7 +174,7 @@ def with_slide_columns(mechanism: Mechanism, raw: pd.DataFrame,
     wanted = set(mechanism.signal_map.values())
     extra = {}
     for j in mechanism.joints:
-        if j.kind != "prismatic" or f"{j.name}.s" not in wanted:
+        if j.kind != "prismatic" or not {f"{j.name}.s", f"{j.name}.N"} & wanted:
             continue
         extra.update({f"{j.name}.{q}": values for q, values in slide_motion(raw, j).items()})
         if f"{j.name}.Fx" in raw and f"{j.name}.Fy" in raw:
@@ -143,6 +184,19 @@ def with_slide_columns(mechanism: Mechanism, raw: pd.DataFrame,
             if f"{j.name}.Fx" in missing:
                 missing = {**missing, f"{j.name}.N": missing[f"{j.name}.Fx"]}
     return (raw.assign(**extra) if extra else raw), missing
+
+
+def with_com_columns(mechanism: Mechanism, raw: pd.DataFrame) -> pd.DataFrame:
+    """Add the centre-of-mass columns B.G.x, B.G.y, B.G.vx, … of every body
+    B the signal map asks for (planar files' B.x, B.y, …), from the raw
+    motion of its frame (rigid-body point motion)."""
+    wanted = set(mechanism.signal_map.values())
+    extra = {}
+    for body in mechanism.bodies:
+        if f"{body.name}.G.x" in wanted:
+            G = point_motion(raw, body.name, body.com)
+            extra.update({f"{body.name}.G.{q}": G[q] for q in ("x", "y", "vx", "vy", "ax", "ay")})
+    return raw.assign(**extra) if extra else raw
 
 
 def write_folder_atomically(out: str | os.PathLike, fill) -> Path:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from mechval.adapter import EngineAdapter, Unrepresentable
+from mechval.adapter import EngineAdapter, Unrepresentable, mechanism_features
 from mechval.engines.registry import adapter
 from mechval.health import health
 from mechval.linkages import build_mechanism
@@ -23,6 +23,10 @@ def simulate(scenario: Scenario, engine: EngineAdapter | str,
     scenario's file."""
     engine_adapter = adapter(engine) if isinstance(engine, str) else engine
     mechanism = build_mechanism(scenario)
+    for feature, key in mechanism_features(mechanism).items():
+        if feature not in engine_adapter.features:
+            raise ScenarioError(scenario.source, key, f"{engine_adapter.name}: its adapter does not build "
+                                                      f"{feature} yet")
     settings = engine_adapter.settings_for(scenario, mechanism, overrides)
     try:
         raw = engine_adapter.run(mechanism, scenario.time.t, settings)

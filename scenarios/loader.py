@@ -183,10 +183,13 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
     `engines`: the engine names an `[engines.NAME]` table may name (the
     harness passes its registry's); None accepts any name, and an adapter
     still refuses settings it does not know."""
+    if data.get("mechanism") == "planar":       # bodies and joints: docs/scenario-format.md#planar-files
+        from .planar import parse_planar
+        return parse_planar(data, source, engines)
     top = _Reader(source, "", data)
     top.only(TOP_KEYS)
     name = top.string("name")
-    kind = top.string("mechanism", choices=tuple(LINKAGES))
+    kind = top.string("mechanism", choices=(*LINKAGES, "planar"))
     description = top.string("description", default="")
     tags = data.get("tags", [])
     if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):

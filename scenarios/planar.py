@@ -1,0 +1,278 @@
+"""Planar files (`mechanism = "planar"`, docs/scenario-format.md#planar-files):
+any mechanism of rigid bodies, revolute and prismatic joints, drives and
+force elements, validated into a `Scenario` whose `planar` holds the scene.
+
+Every refusal is a `ScenarioError` naming the file, the key and the reason.
+Beyond each key's own checks: an unknown body or point, a joint from a body
+to itself, a body not connected to the ground, two drives on one joint;
+then, by assembling the mechanism and following it over the run
+(`mechval.planar_solver`): drives that do not match the mobility (the
+Grübler count and the Jacobian rank both stated), a pose that cannot be
+assembled, an instant where the loop cannot close or the Jacobian is
+singular (its time named).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any, Collection, Mapping
+
+from mechval.drive import DriveLaw
+from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, Joint, SpringDamper
+from mechval.planar_scene import PlanarScene
+from mechval.planar_solver import MechanismError, PlanarSolver
+from mechval.scenario import Scenario, ScenarioError, TimeGrid, Tolerance
+
+from .loader import _engines, _Reader, _tolerance
+
+TOP_KEYS = {"name", "mechanism", "description", "tags", "ground", "body", "joint", "drive", "force",
+            "assembly", "effects", "time", "tolerance", "engines"}
+NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*\Z")
+
+
+def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
+                 engines: Collection[str] | None = None) -> Scenario:
+    """Validate a planar file's parsed TOML into a `Scenario` (SI units)."""
+    top = _Reader(source, "", data)
+    top.only(TOP_KEYS)
+    name = top.string("name")
+    description = top.string("description", default="")
+    tags = data.get("tags", [])
+    if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
+        top.fail("tags", f"expected a list of strings, got {tags!r}")
+    ground = _points(top.sub("ground"))
+    bodies, points = _bodies(top, ground)
+    joints = _joints(top, points)
+    _connected(top, bodies, joints)
+    drives = _drives(top, joints)
+    forces = _forces(top, points)
+    pose = _assembly(top.sub("assembly", required=True), bodies)
+    gravity = _gravity(top.sub("effects"))
+    time = _time(top.sub("time", required=True))
+    scene = PlanarScene(bodies, joints, drives, forces, pose, gravity)
+    scenario = Scenario(name=name, mechanism="planar", description=description, geometry={}, mass={},
+                        drive=drives[0].law, gravity=gravity, damping={}, time=time,
+                        tolerance=Tolerance().updated(_tolerance(top.sub("tolerance"))),
+                        engines=_engines(top.sub("engines"), engines), tags=tuple(tags),
+                        source=Path(source) if source else None, planar=scene)
+    _solvable(scenario, source)
+    return scenario
+
+
+# -- values ----------------------------------------------------------------------------------------
+
+def _pair(table: _Reader, key: str, what: str = "[x, y] in m") -> tuple[float, float]:
+    value = table.table.get(key)
+    if (not isinstance(value, list) or len(value) != 2
+            or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in value)):
+        table.fail(key, f"expected two finite numbers {what}, got {value!r}")
+    return float(value[0]), float(value[1])
+
+
+def _name(table: _Reader, key: str = "name") -> str:
+    value = table.string(key)
+    if not NAME.match(value) or value == GROUND:
+        table.fail(key, f"{value!r} is not a usable name (letters, digits, _ and -, not starting with a digit; "
+                        f"not {GROUND!r})")
+    return value
+
+
+def _array(top: _Reader, key: str, required: bool = False) -> list[_Reader]:
+    """The tables of an array of tables [[key]], each with a reader."""
+    value = top.table.get(key, [])
+    if required and not value:
+        top.fail(key, f"missing: at least one [[{key}]] table")
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        top.fail(key, f"expected an array of tables [[{key}]], got {type(value).__name__}")
+    return [_Reader(top.source, f"{key}[{k}]", entry) for k, entry in enumerate(value)]
+
+
+def _named(readers: list[_Reader], kind: str) -> list[tuple[str, _Reader]]:
+    """(name, reader) pairs with each reader's errors keyed by the name,
+    refusing duplicate names."""
+    named, seen = [], set()
+    for reader in readers:
+        name = _name(reader)
+        if name in seen:
+            reader.fail("name", f"a second {kind} named {name!r}")
+        seen.add(name)
+        named.append((name, _Reader(reader.source, f"{kind}.{name}", reader.table)))
+    return named
+
+
+def _points(table: _Reader) -> dict[str, tuple[float, float]]:
+    points = {}
+    for key in table.table:
+        if not NAME.match(key):
+            table.fail(key, f"{key!r} is not a usable point name")
+        points[key] = _pair(table, key)
+    return points
+
+
+# -- the scene -------------------------------------------------------------------------------------
+
+def _bodies(top: _Reader, ground: dict) -> tuple[tuple[Body, ...], dict[str, dict]]:
+    """Bodies, and every body's named points (the ground's too)."""
+    bodies, points = [], {GROUND: ground}
+    for name, body in _named(_array(top, "body", required=True), "body"):
+        body.only({"name", "mass", "length", "com", "izz", "points"})
+        mass = body.number("mass", positive=True)
+        own = _points(body.sub("points"))
+        if "length" in body.table:
+            length = body.number("length", positive=True)
+            for end, at in (("start", (0.0, 0.0)), ("end", (length, 0.0))):
+                if end in own:
+                    body.fail(f"points.{end}", f"{end!r} is the bar's end given by `length`; name this point otherwise")
+                own[end] = at
+            com = _pair(body, "com") if "com" in body.table else (length / 2, 0.0)
+            izz = body.number("izz", default=mass * length**2 / 12, nonnegative=True)
+        else:
+            for key in ("com", "izz"):
+                if key not in body.table:
+                    body.fail(key, "missing value (give `length` for a uniform bar, or `com` and `izz`)")
+            com, izz = _pair(body, "com"), body.number("izz", nonnegative=True)
+        bodies.append(Body(name, mass, com, izz))
+        points[name] = own
+    return tuple(bodies), points
+
+
+def _point(reader: _Reader, key: str, text: Any, points: dict) -> tuple[str, tuple[float, float]]:
+    """Resolve "body.point" (the ground's points as "ground.point")."""
+    if not isinstance(text, str) or text.count(".") != 1:
+        reader.fail(key, f"expected \"body.point\", got {text!r}")
+    body, point = text.split(".")
+    if body not in points:
+        reader.fail(key, f"unknown body {body!r} (bodies: {', '.join(sorted(points))})")
+    if point not in points[body]:
+        known = ", ".join(sorted(points[body])) or "none"
+        reader.fail(key, f"{body!r} has no point {point!r} (its points: {known})")
+    return body, points[body][point]
+
+
+def _between(reader: _Reader, points: dict) -> tuple[tuple[str, tuple], tuple[str, tuple]]:
+    value = reader.table.get("between")
+    if not isinstance(value, list) or len(value) != 2:
+        reader.fail("between", f"expected two points [\"body.point\", \"body.point\"], got {value!r}")
+    return _point(reader, "between", value[0], points), _point(reader, "between", value[1], points)
+
+
+def _joints(top: _Reader, points: dict) -> tuple[Joint, ...]:
+    joints = []
+    for name, joint in _named(_array(top, "joint", required=True), "joint"):
+        kind = joint.string("type", choices=("revolute", "prismatic"))
+        joint.only({"name", "type", "between", "damping"} | ({"axis", "angle"} if kind == "prismatic" else set()))
+        (body_i, p_i), (body_j, p_j) = _between(joint, points)
+        if body_i == body_j:
+            joint.fail("between", f"joins {body_i!r} to itself")
+        damping = joint.number("damping", default=0.0, nonnegative=True)
+        if kind == "revolute":
+            joints.append(Joint(name, kind, body_i, body_j, p_i, p_j, damping=damping))
+            continue
+        ax, ay = _pair(joint, "axis", "[x, y] in the first body's frame")
+        norm = math.hypot(ax, ay)
+        if norm == 0:
+            joint.fail("axis", "must not be zero")
+        angle = joint.number("angle") if "angle" in joint.table else None
+        joints.append(Joint(name, kind, body_i, body_j, p_i, p_j, (ax / norm, ay / norm), damping, angle))
+    return tuple(joints)
+
+
+def _connected(top: _Reader, bodies: tuple[Body, ...], joints: tuple[Joint, ...]) -> None:
+    """Every body reaches the ground through joints."""
+    reached, grew = {GROUND}, True
+    while grew:
+        grew = False
+        for j in joints:
+            if (j.body_i in reached) != (j.body_j in reached):
+                reached |= {j.body_i, j.body_j}
+                grew = True
+    for body in bodies:
+        if body.name not in reached:
+            top.fail(f"body.{body.name}", "is not connected to the ground by any chain of joints")
+
+
+def _drives(top: _Reader, joints: tuple[Joint, ...]) -> tuple[Drive, ...]:
+    known = {j.name for j in joints}
+    drives, driven = [], set()
+    for drive in _array(top, "drive", required=True):
+        drive.only({"joint", "phi0", "omega0", "alpha"})
+        joint = drive.string("joint")
+        if joint not in known:
+            drive.fail("joint", f"unknown joint {joint!r} (joints: {', '.join(sorted(known))})")
+        if joint in driven:
+            drive.fail("joint", f"a second drive on joint {joint!r}")
+        driven.add(joint)
+        law = DriveLaw(drive.number("phi0", default=0.0), drive.number("omega0"), drive.number("alpha", default=0.0))
+        # The first drive keeps the raw name every adapter writes ("drive.T");
+        # its canonical signal, like the others', is named after its joint.
+        drives.append(Drive(joint, law, name="drive" if not drives else joint))
+    return tuple(drives)
+
+
+def _forces(top: _Reader, points: dict) -> tuple[SpringDamper | BodyTorque, ...]:
+    forces = []
+    for k, force in enumerate(_array(top, "force")):
+        name = _name(force) if "name" in force.table else f"force{k + 1}"
+        kind = force.string("type", choices=("spring", "torque"))
+        if kind == "torque":
+            force.only({"name", "type", "body", "torque"})
+            body = force.string("body")
+            if body not in points or body == GROUND:
+                force.fail("body", f"unknown body {body!r} (bodies: {', '.join(sorted(set(points) - {GROUND}))})")
+            forces.append(BodyTorque(name, body, force.number("torque")))
+            continue
+        force.only({"name", "type", "between", "stiffness", "free_length", "damping"})
+        (body_a, p_a), (body_b, p_b) = _between(force, points)
+        if body_a == body_b:
+            force.fail("between", f"joins {body_a!r} to itself: it would exert no force")
+        forces.append(SpringDamper(name, body_a, p_a, body_b, p_b, force.number("stiffness", nonnegative=True),
+                                   force.number("free_length", nonnegative=True),
+                                   force.number("damping", default=0.0, nonnegative=True)))
+    return tuple(forces)
+
+
+def _assembly(table: _Reader, bodies: tuple[Body, ...]) -> dict[str, BodyPose]:
+    names = {b.name for b in bodies}
+    table.only(names)
+    pose = {}
+    for body in bodies:
+        if body.name not in table.table:
+            table.fail(body.name, "missing: every body needs an approximate angle at t = 0 (rad)")
+        if isinstance(table.table[body.name], dict):
+            entry = table.sub(body.name)
+            entry.only({"theta", "x", "y"})
+            if ("x" in entry.table) != ("y" in entry.table):
+                entry.fail("x" if "x" in entry.table else "y", "give both x and y of the frame's origin, or neither")
+            xy = (entry.number("x"), entry.number("y")) if "x" in entry.table else (None, None)
+            pose[body.name] = BodyPose(entry.number("theta"), *xy)
+        else:
+            pose[body.name] = BodyPose(table.number(body.name))
+    return pose
+
+
+def _gravity(table: _Reader) -> tuple[float, float]:
+    table.only({"gravity"})
+    return _pair(table, "gravity", "[gx, gy] in m/s²") if "gravity" in table.table else (0.0, 0.0)
+
+
+def _time(table: _Reader) -> TimeGrid:
+    table.only({"end", "samples"})
+    samples = table.table.get("samples")
+    if isinstance(samples, bool) or not isinstance(samples, int):
+        table.fail("samples", f"expected a whole number, got {samples!r}" if samples is not None else "missing value")
+    if samples < 2:
+        table.fail("samples", f"must be at least 2, got {samples}")
+    return TimeGrid(table.number("end", positive=True), samples)
+
+
+def _solvable(scenario: Scenario, source) -> None:
+    """Assemble the mechanism and follow it over the run: refuses what the
+    general reference cannot solve, naming the key and, for an instant,
+    the time. (Each sample's own solve, at run time, refuses the same way.)"""
+    from mechval.linkages import build_mechanism
+    try:
+        PlanarSolver(build_mechanism(scenario)).check(0.0, scenario.time.end)
+    except MechanismError as exc:
+        raise ScenarioError(source, exc.key, exc.reason) from None

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from .adapter import RunInfo
-from .kinematics import slide_axis, slide_motion
+from .kinematics import point_motion, slide_axis, slide_motion
 from .mechanism import Mechanism
 
 COMMON_SIGNALS = (

@@ -100,7 +100,7 @@ def check_case(capfd, tmp_path, label: str, case: Case, engine: str = "reference
         return status
     assert len(lines) == 1 and len(lines[0]) < 2500, context
     if status == 1 and engine != "reference":
-        assert lines[0].startswith(f"mechval: engine failed: "), context
+        assert lines[0].startswith("mechval: engine failed: "), context
     else:
         assert status == 2, context
         prefix = f"mechval: error: {path}: "

@@ -14,8 +14,7 @@ import pytest
 
 from conftest import engine_or_skip
 from fake_engines import FAKES
-from mechval import limits
-from mechval.harness import cli, run_limits
+from mechval.harness import cli
 from mechval.engines import registry
 from mechval.harness.run_limits import Limits, check_run, run_size
 from mechval.scenario import ScenarioError

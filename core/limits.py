@@ -17,6 +17,8 @@ import math
 from .scenario import Scenario, ScenarioError
 from .adapter import as_float
 from .reference import ReferenceAdapter
+from .drive import DriveLaw
+from .planar_scene import signal_map as planar_signal_map
 from .signals import signal_names
 
 #: Most output instants per scenario. The loader itself evaluates the
@@ -56,25 +58,39 @@ def check_scene(scenario: Scenario) -> None:
     if not interval >= MIN_SAMPLE_INTERVAL:
         raise fail("time.end", f"the sample interval end / (samples − 1) = {interval:.3g} s is below "
                                f"{MIN_SAMPLE_INTERVAL:g} s, where the engines' steps lose their accuracy")
-    law = scenario.drive
-    if abs(law.phi0) > MAX_CRANK_ANGLE:
-        raise fail("drive.phi0", _angle_reason(abs(law.phi0), "at t = 0"))
-    angle, when = crank_angle_peak(law.phi0, law.omega0, law.alpha, end)
-    if angle > MAX_CRANK_ANGLE:
-        raise fail("drive", _angle_reason(angle, f"at t = {when:.6g} s") +
-                   "; shorten time.end or lower omega0/alpha")
-    heaviest = max(m.mass for m in scenario.mass.values())
-    for link, m in scenario.mass.items():        # the moving links
-        if m.mass < MIN_MASS:
-            raise fail(f"mass.{link}", f"{m.mass:g} kg is below {MIN_MASS:g} kg (MuJoCo refuses masses "
-                                       "≤ 1e-15 kg; PyBullet takes them for fixed bodies)")
-        if heaviest / m.mass > MAX_MASS_RATIO:
-            raise fail(f"mass.{link}", f"{m.mass:g} kg is {heaviest / m.mass:.3g} times lighter than the "
-                                       f"heaviest link ({heaviest:g} kg); beyond {MAX_MASS_RATIO:.0e} "
-                                       "the engines' solvers lose the light link")
-        if 0 < m.izz < MIN_INERTIA:
-            raise fail(f"mass.{link}", f"izz = {m.izz:.3g} kg·m² is below {MIN_INERTIA:g} kg·m² "
-                                       "(MuJoCo refuses inertias ≤ 1e-15 kg·m² per axis)")
+    for key, law in _drive_laws(scenario):
+        if abs(law.phi0) > MAX_CRANK_ANGLE:
+            raise fail(f"{key}.phi0", _angle_reason(abs(law.phi0), "at t = 0"))
+        angle, when = crank_angle_peak(law.phi0, law.omega0, law.alpha, end)
+        if angle > MAX_CRANK_ANGLE:
+            raise fail(key, _angle_reason(angle, f"at t = {when:.6g} s") + "; shorten time.end or lower omega0/alpha")
+    masses = _masses(scenario)
+    heaviest = max(mass for _, mass, _ in masses)
+    for key, mass, izz in masses:        # the moving links
+        if mass < MIN_MASS:
+            raise fail(key, f"{mass:g} kg is below {MIN_MASS:g} kg (MuJoCo refuses masses "
+                            "≤ 1e-15 kg; PyBullet takes them for fixed bodies)")
+        if heaviest / mass > MAX_MASS_RATIO:
+            raise fail(key, f"{mass:g} kg is {heaviest / mass:.3g} times lighter than the "
+                            f"heaviest link ({heaviest:g} kg); beyond {MAX_MASS_RATIO:.0e} "
+                            "the engines' solvers lose the light link")
+        if 0 < izz < MIN_INERTIA:
+            raise fail(key, f"izz = {izz:.3g} kg·m² is below {MIN_INERTIA:g} kg·m² "
+                            "(MuJoCo refuses inertias ≤ 1e-15 kg·m² per axis)")
+
+
+def _drive_laws(scenario: Scenario) -> list[tuple[str, DriveLaw]]:
+    """(key, law) of every drive: the [drive] table, or a planar file's [[drive]]s."""
+    if scenario.planar is None:
+        return [("drive", scenario.drive)]
+    return [(f"drive[{k}]", drive.law) for k, drive in enumerate(scenario.planar.drives)]
+
+
+def _masses(scenario: Scenario) -> list[tuple[str, float, float]]:
+    """(key, mass, izz) of every moving link."""
+    if scenario.planar is None:
+        return [(f"mass.{link}", m.mass, m.izz) for link, m in scenario.mass.items()]
+    return [(f"body[{k}]", b.mass, b.izz) for k, b in enumerate(scenario.planar.bodies)]
 
 
 def crank_angle_peak(phi0: float, omega0: float, alpha: float, end: float) -> tuple[float, float]:
@@ -94,8 +110,14 @@ def _angle_reason(angle: float, when: str) -> str:
 
 def reference_bytes(scenario: Scenario) -> float:
     """The reference's output tables at the scenario's samples (bytes)."""
-    return (as_float(scenario.time.samples) * len(signal_names(scenario.mechanism)) * 8
-            * ReferenceAdapter.output_copies)
+    return as_float(scenario.time.samples) * signal_count(scenario) * 8 * ReferenceAdapter.output_copies
+
+
+def signal_count(scenario: Scenario) -> int:
+    """Columns of the scenario's canonical signals (t included)."""
+    if scenario.planar is None:
+        return len(signal_names(scenario.mechanism))
+    return 1 + len(planar_signal_map(scenario.planar))
 
 
 def _gib(size: float) -> str:

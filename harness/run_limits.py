@@ -15,7 +15,7 @@ from mechval.adapter import EngineAdapter, as_float
 from mechval.engines.registry import adapter
 from mechval.linkages import build_mechanism
 from mechval.scenario import Scenario, ScenarioError
-from mechval.signals import signal_names
+from mechval.limits import signal_count
 
 #: Default limits of one engine run (overridden by --max-steps, --max-memory).
 #: Measured 11-34 µs per step (up to 100 on a loaded machine): 10⁷ steps
@@ -66,7 +66,7 @@ def run_size(scenario: Scenario, engine: EngineAdapter | str, settings: Mapping[
     (`adapter.settings_for`) on the scenario."""
     engine = adapter(engine) if isinstance(engine, str) else engine
     samples = scenario.time.samples
-    table = as_float(samples) * len(signal_names(scenario.mechanism)) * 8 * engine.output_copies
+    table = as_float(samples) * signal_count(scenario) * 8 * engine.output_copies
     per_sample, pre_roll = engine.planned_steps(scenario.time.t[:2], settings)
     if per_sample == 0:
         return RunSize(engine.name, 0.0, 0.0, math.nan, table, 0.0)

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Collection, Mapping
 
 from mechval.drive import DriveLaw
+from mechval.limits import check_scene
 from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, Joint, SpringDamper
 from mechval.planar_scene import PlanarScene
 from mechval.planar_solver import MechanismError, PlanarSolver
@@ -57,6 +58,7 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
                         tolerance=Tolerance().updated(_tolerance(top.sub("tolerance"))),
                         engines=_engines(top.sub("engines"), engines), tags=tuple(tags),
                         source=Path(source) if source else None, planar=scene)
+    check_scene(scenario)       # before the mechanism is followed over the run
     _solvable(scenario, source)
     return scenario
 

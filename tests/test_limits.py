@@ -288,3 +288,19 @@ def test_summary_table_escapes_names_and_reasons():
     assert {cells(r) for r in header} == {cells(header[0])} and cells(header[0]) == 4
     assert {cells(r) for r in failures} == {9}
     assert "a \\| b\\nc" in text and "off\\nby \\| far" in text
+
+
+@pytest.mark.parametrize("edit, key", [
+    (lambda doc: doc["time"].update(samples=10**7), "time.samples"),
+    (lambda doc: doc["drive"][0].update(phi0=1e15), "drive[0].phi0"),
+    (lambda doc: doc["body"][0].update(mass=1e-300), "body[0]"),
+])
+def test_planar_files_get_the_same_scene_bounds(edit, key):
+    """A planar file is bounded like the four kinds, before the mechanism is
+    followed over the run (10⁷ samples would otherwise be solved first)."""
+    import tomllib
+    doc = tomllib.loads((builtin_path("x").parent / "planar-twins" / "fourbar-seed.toml").read_text(encoding="utf-8"))
+    edit(doc)
+    with pytest.raises(ScenarioError) as info:
+        parse(doc, "twin.toml")
+    assert info.value.key == key

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .linkages import build_mechanism, linkage
+from .planar_analysis import analyse_planar, format_planar_analysis
 from .reference import raw_reference
 from .scenario import Scenario, ScenarioError
 
@@ -139,7 +140,6 @@ def _refuse_nonfinite(scenario: Scenario, t: np.ndarray, values: np.ndarray, key
 
 def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
     if scenario.mechanism == "planar":
-        from .planar_analysis import analyse_planar     # imports the general reference
         return analyse_planar(scenario, samples)
     geometry = scenario.geometry
     module = linkage(scenario.mechanism)
@@ -191,7 +191,6 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
 
 def format_analysis(a: Analysis, max_toggles: int = 12) -> str:
     if not isinstance(a, Analysis):
-        from .planar_analysis import format_planar_analysis
         return format_planar_analysis(a, max_toggles)
     lines = [
         f"scenario            {a.scenario} ({a.mechanism})",

@@ -8,6 +8,7 @@ from types import ModuleType
 
 from . import fourbar, inverted_slider, slider_crank, slotted_lever
 from .mechanism import Mechanism
+from .planar_scene import build_mechanism as build_planar
 from .scenario import Scenario
 
 LINKAGES: dict[str, ModuleType] = {"fourbar": fourbar, "slider_crank": slider_crank,
@@ -22,6 +23,5 @@ def build_mechanism(scenario: Scenario) -> Mechanism:
     """The generic `Mechanism` of a validated scenario (a planar file's
     from its bodies and joints, `mechval.planar_scene`)."""
     if scenario.mechanism == "planar":
-        from .planar_scene import build_mechanism as build_planar   # imports the solver: only when needed
         return build_planar(scenario)
     return LINKAGES[scenario.mechanism].build_mechanism(scenario)

@@ -15,6 +15,7 @@ from .adapter import FEATURES, EngineAdapter, RawRun, RunInfo, Unrepresentable
 from .linkages import build_mechanism
 from .mechanism import Mechanism
 from .newton_euler import reaction_values
+from .planar_solver import MechanismError, raw_planar
 from .scenario import Scenario
 from .signals import Signals, canonical_signals
 
@@ -72,7 +73,6 @@ class ReferenceAdapter(EngineAdapter):
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         if mechanism.kind == "planar":     # no closed form: the general reference
-            from .planar_solver import MechanismError, raw_planar
             try:
                 solution = raw_planar(mechanism, times)
             except MechanismError as exc:

@@ -7,9 +7,7 @@ effects, the default tolerances, the engines' own derived settings.
 
 from __future__ import annotations
 
-import math
 import re
-import reprlib
 import sys
 import tomllib
 from dataclasses import fields
@@ -22,8 +20,10 @@ from mechval.drive import DriveLaw
 from mechval.analysis import check_trustworthy
 from mechval.limits import check_scene, shown_int
 from mechval.linkages import LINKAGES
-from mechval.scenario import (DEFAULT_TOLERANCE, EngineTable, LinkMass, Scenario,
-                              ScenarioError, TimeGrid, Tolerance)
+from mechval.scenario import LinkMass, Scenario, ScenarioError, TimeGrid, Tolerance
+
+from .planar import parse_planar
+from .tables import MAX_MAGNITUDE, Reader, engine_tables, shown, tolerance
 
 HERE = Path(__file__).resolve().parent
 TOP_KEYS = {"name", "mechanism", "description", "tags", "geometry", "mass", "drive",
@@ -31,9 +31,6 @@ TOP_KEYS = {"name", "mechanism", "description", "tags", "geometry", "mass", "dri
 REQUIRED_TABLES = ("geometry", "mass", "drive", "time")
 BRANCHES = {"fourbar": ("open", "crossed"), "slider_crank": ("right", "left"),
             "inverted_slider": ("left", "right")}
-#: Largest magnitude accepted for any number (SI units): far beyond any
-#: linkage, small enough that products like m·L²·ω² stay within float64.
-MAX_MAGNITUDE = 1e50
 #: The ground may be given a mass (as in the published four-bar study); it
 #: does not move, so the value is checked and otherwise has no effect.
 IGNORED_MASS_KEYS = {"ground"}
@@ -104,78 +101,6 @@ def _long_integer(text: str) -> tuple[str, int] | None:
     return None
 
 
-def shown(value: Any) -> str:
-    """A value quoted in an error: short, whatever its size or depth."""
-    if isinstance(value, int) and not isinstance(value, bool):
-        return shown_int(value)
-    quote = reprlib.Repr()
-    quote.maxlevel, quote.maxstring, quote.maxother, quote.maxlist, quote.maxdict = 3, 60, 60, 4, 4
-    return quote.repr(value)
-
-
-class _Reader:
-    """Typed access to one table, with errors that name the dotted key."""
-
-    def __init__(self, source, prefix: str, table: Mapping[str, Any]):
-        self.source, self.prefix, self.table = source, prefix, table
-
-    def key(self, name: str) -> str:
-        return f"{self.prefix}.{name}" if self.prefix else name
-
-    def fail(self, name: str, reason: str):
-        raise ScenarioError(self.source, self.key(name), reason)
-
-    def only(self, allowed) -> None:
-        for name in self.table:
-            if name not in allowed:
-                self.fail(name, f"unknown key (allowed: {', '.join(sorted(allowed))})")
-
-    def number(self, name: str, default=None, positive=False, nonnegative=False) -> float:
-        if name not in self.table:
-            if default is None:
-                self.fail(name, "missing value")
-            return default
-        return self.check_number(name, self.table[name], positive, nonnegative)
-
-    def check_number(self, name: str, value: Any, positive=False, nonnegative=False) -> float:
-        """`value` (found under `name`) as a float, if it is an acceptable number."""
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(name, f"expected a number, got {type(value).__name__} {shown(value)}")
-        if isinstance(value, float) and not math.isfinite(value):
-            self.fail(name, f"must be finite, got {value}")
-        if abs(value) > MAX_MAGNITUDE:      # exact for integers of any size
-            magnitude = shown_int(value) if isinstance(value, int) else f"{value:g}"
-            self.fail(name, f"magnitude {magnitude} exceeds {MAX_MAGNITUDE:g}: the reference squares and "
-                            "multiplies such values beyond float64")
-        if positive and value <= 0:
-            self.fail(name, f"must be positive, got {value}")
-        if nonnegative and value < 0:
-            self.fail(name, f"must not be negative, got {value}")
-        return float(value)
-
-    def string(self, name: str, default=None, choices=None) -> str:
-        if name not in self.table:
-            if default is None:
-                self.fail(name, "missing value")
-            return default
-        value = self.table[name]
-        if not isinstance(value, str):
-            self.fail(name, f"expected a string, got {type(value).__name__} {shown(value)}")
-        if choices and value not in choices:
-            self.fail(name, f"must be one of {', '.join(map(repr, choices))}, got {shown(value)}")
-        return value
-
-    def sub(self, name: str, required=False) -> "_Reader":
-        if name not in self.table:
-            if required:
-                self.fail(name, "missing table")
-            return _Reader(self.source, self.key(name), {})
-        value = self.table[name]
-        if not isinstance(value, dict):
-            self.fail(name, f"expected a table, got {type(value).__name__} {shown(value)}")
-        return _Reader(self.source, self.key(name), value)
-
-
 def parse(data: Mapping[str, Any], source: str | Path | None = None,
           engines: Collection[str] | None = None) -> Scenario:
     """Validate a parsed TOML document into a `Scenario` (SI units).
@@ -184,9 +109,8 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
     harness passes its registry's); None accepts any name, and an adapter
     still refuses settings it does not know."""
     if data.get("mechanism") == "planar":       # bodies and joints: docs/scenario-format.md#planar-files
-        from .planar import parse_planar
         return parse_planar(data, source, engines)
-    top = _Reader(source, "", data)
+    top = Reader(source, "", data)
     top.only(TOP_KEYS)
     name = top.string("name")
     kind = top.string("mechanism", choices=(*LINKAGES, "planar"))
@@ -212,11 +136,10 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
     if samples < 2:
         time_table.fail("samples", f"must be at least 2, got {shown_int(samples)}")
     time = TimeGrid(time_table.number("end", positive=True), samples)
-    tolerance = Tolerance().updated(_tolerance(top.sub("tolerance")))
-    engine_tables = _engines(top.sub("engines"), engines)
     scenario = Scenario(name=name, mechanism=kind, description=description, geometry=geometry, mass=mass,
-                        drive=drive, gravity=gravity, damping=damping, time=time, tolerance=tolerance,
-                        engines=engine_tables, tags=tuple(tags), source=Path(source) if source else None)
+                        drive=drive, gravity=gravity, damping=damping, time=time,
+                        tolerance=Tolerance().updated(tolerance(top.sub("tolerance"))),
+                        engines=engine_tables(top.sub("engines"), engines), tags=tuple(tags), source=Path(source) if source else None)
     check_scene(scenario)       # before anything is evaluated at the samples
     module.check_closure(module.Geometry(**geometry), drive, _dense_times(time), source)
     check_trustworthy(scenario)
@@ -233,7 +156,7 @@ def _dense_times(time: TimeGrid):
     return np.union1d(time.t, np.linspace(0.0, time.end, min(max(20 * time.samples, 20001), DENSE_MAX)))
 
 
-def _geometry(table: _Reader, kind: str, module) -> dict[str, Any]:
+def _geometry(table: Reader, kind: str, module) -> dict[str, Any]:
     table.only({f.name for f in fields(module.Geometry)})
     values: dict[str, Any] = {}
     for f in fields(module.Geometry):
@@ -246,7 +169,7 @@ def _geometry(table: _Reader, kind: str, module) -> dict[str, Any]:
     return values
 
 
-def _masses(table: _Reader, module, geometry: Mapping[str, Any]) -> dict[str, LinkMass]:
+def _masses(table: Reader, module, geometry: Mapping[str, Any]) -> dict[str, LinkMass]:
     table.only(set(module.LINKS) | IGNORED_MASS_KEYS)
     if "ground" in table.table:
         table.number("ground", positive=True)
@@ -276,7 +199,7 @@ def _masses(table: _Reader, module, geometry: Mapping[str, Any]) -> dict[str, Li
     return masses
 
 
-def _effects(table: _Reader, module) -> tuple[tuple[float, float] | None, dict[str, float]]:
+def _effects(table: Reader, module) -> tuple[tuple[float, float] | None, dict[str, float]]:
     table.only({"gravity", "damping"})
     gravity = None
     if "gravity" in table.table:
@@ -288,38 +211,3 @@ def _effects(table: _Reader, module) -> tuple[tuple[float, float] | None, dict[s
     damping_table.only(set(module.PINS))
     damping = {pin: damping_table.number(pin, nonnegative=True) for pin in module.PINS if pin in damping_table.table}
     return gravity, damping
-
-
-def _tolerance(table: _Reader) -> dict[str, float]:
-    table.only(set(DEFAULT_TOLERANCE))
-    return {k: table.number(k, positive=True) for k in table.table}
-
-
-def _engine_tolerance(table: _Reader) -> tuple[dict[str, float], dict[str, str]]:
-    """An [engines.NAME.tolerance] table: per class a bound, either a number
-    or { bound = …, reason = "…" } (the reason is shown beside the bound in
-    reports, so a loosened bound is never silent). Bounds and reasons."""
-    table.only(set(DEFAULT_TOLERANCE))
-    bounds, reasons = {}, {}
-    for cls, value in table.table.items():
-        if isinstance(value, dict):
-            entry = table.sub(cls)
-            entry.only({"bound", "reason"})
-            bounds[cls] = entry.number("bound", positive=True)
-            reasons[cls] = entry.string("reason")
-            if not reasons[cls].strip():
-                entry.fail("reason", "must not be empty (say why this engine needs a different bound)")
-        else:
-            bounds[cls] = table.number(cls, positive=True)
-    return bounds, reasons
-
-
-def _engines(table: _Reader, names: Collection[str] | None) -> dict[str, EngineTable]:
-    if names is not None:
-        table.only(set(names))
-    engines = {}
-    for engine in table.table:
-        sub = table.sub(engine)
-        settings = {k: v for k, v in sub.table.items() if k != "tolerance"}
-        engines[engine] = EngineTable(settings, *_engine_tolerance(sub.sub("tolerance")))
-    return engines

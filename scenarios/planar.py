@@ -21,12 +21,13 @@ from typing import Any, Collection, Mapping
 
 from mechval.drive import DriveLaw
 from mechval.limits import check_scene
+from mechval.linkages import build_mechanism
 from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, Joint, SpringDamper
 from mechval.planar_scene import PlanarScene
 from mechval.planar_solver import MechanismError, PlanarSolver
 from mechval.scenario import Scenario, ScenarioError, TimeGrid, Tolerance
 
-from .loader import _engines, _Reader, _tolerance
+from .tables import Reader, engine_tables, tolerance
 
 TOP_KEYS = {"name", "mechanism", "description", "tags", "ground", "body", "joint", "drive", "force",
             "assembly", "effects", "time", "tolerance", "engines"}
@@ -36,7 +37,7 @@ NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*\Z")
 def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
                  engines: Collection[str] | None = None) -> Scenario:
     """Validate a planar file's parsed TOML into a `Scenario` (SI units)."""
-    top = _Reader(source, "", data)
+    top = Reader(source, "", data)
     top.only(TOP_KEYS)
     name = top.string("name")
     description = top.string("description", default="")
@@ -55,8 +56,8 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
     scene = PlanarScene(bodies, joints, drives, forces, pose, gravity)
     scenario = Scenario(name=name, mechanism="planar", description=description, geometry={}, mass={},
                         drive=drives[0].law, gravity=gravity, damping={}, time=time,
-                        tolerance=Tolerance().updated(_tolerance(top.sub("tolerance"))),
-                        engines=_engines(top.sub("engines"), engines), tags=tuple(tags),
+                        tolerance=Tolerance().updated(tolerance(top.sub("tolerance"))),
+                        engines=engine_tables(top.sub("engines"), engines), tags=tuple(tags),
                         source=Path(source) if source else None, planar=scene)
     check_scene(scenario)       # before the mechanism is followed over the run
     _solvable(scenario, source)
@@ -65,7 +66,7 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
 
 # -- values ----------------------------------------------------------------------------------------
 
-def _pair(table: _Reader, key: str, what: str = "[x, y] in m") -> tuple[float, float]:
+def _pair(table: Reader, key: str, what: str = "[x, y] in m") -> tuple[float, float]:
     value = table.table.get(key)
     if (not isinstance(value, list) or len(value) != 2
             or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in value)):
@@ -73,7 +74,7 @@ def _pair(table: _Reader, key: str, what: str = "[x, y] in m") -> tuple[float, f
     return float(value[0]), float(value[1])
 
 
-def _name(table: _Reader, key: str = "name") -> str:
+def _name(table: Reader, key: str = "name") -> str:
     value = table.string(key)
     if not NAME.match(value) or value == GROUND:
         table.fail(key, f"{value!r} is not a usable name (letters, digits, _ and -, not starting with a digit; "
@@ -81,17 +82,17 @@ def _name(table: _Reader, key: str = "name") -> str:
     return value
 
 
-def _array(top: _Reader, key: str, required: bool = False) -> list[_Reader]:
+def _array(top: Reader, key: str, required: bool = False) -> list[Reader]:
     """The tables of an array of tables [[key]], each with a reader."""
     value = top.table.get(key, [])
     if required and not value:
         top.fail(key, f"missing: at least one [[{key}]] table")
     if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
         top.fail(key, f"expected an array of tables [[{key}]], got {type(value).__name__}")
-    return [_Reader(top.source, f"{key}[{k}]", entry) for k, entry in enumerate(value)]
+    return [Reader(top.source, f"{key}[{k}]", entry) for k, entry in enumerate(value)]
 
 
-def _named(readers: list[_Reader], kind: str) -> list[tuple[str, _Reader]]:
+def _named(readers: list[Reader], kind: str) -> list[tuple[str, Reader]]:
     """(name, reader) pairs with each reader's errors keyed by the name,
     refusing duplicate names."""
     named, seen = [], set()
@@ -100,11 +101,11 @@ def _named(readers: list[_Reader], kind: str) -> list[tuple[str, _Reader]]:
         if name in seen:
             reader.fail("name", f"a second {kind} named {name!r}")
         seen.add(name)
-        named.append((name, _Reader(reader.source, f"{kind}.{name}", reader.table)))
+        named.append((name, Reader(reader.source, f"{kind}.{name}", reader.table)))
     return named
 
 
-def _points(table: _Reader) -> dict[str, tuple[float, float]]:
+def _points(table: Reader) -> dict[str, tuple[float, float]]:
     points = {}
     for key in table.table:
         if not NAME.match(key):
@@ -115,7 +116,7 @@ def _points(table: _Reader) -> dict[str, tuple[float, float]]:
 
 # -- the scene -------------------------------------------------------------------------------------
 
-def _bodies(top: _Reader, ground: dict) -> tuple[tuple[Body, ...], dict[str, dict]]:
+def _bodies(top: Reader, ground: dict) -> tuple[tuple[Body, ...], dict[str, dict]]:
     """Bodies, and every body's named points (the ground's too)."""
     bodies, points = [], {GROUND: ground}
     for name, body in _named(_array(top, "body", required=True), "body"):
@@ -140,7 +141,7 @@ def _bodies(top: _Reader, ground: dict) -> tuple[tuple[Body, ...], dict[str, dic
     return tuple(bodies), points
 
 
-def _point(reader: _Reader, key: str, text: Any, points: dict) -> tuple[str, tuple[float, float]]:
+def _point(reader: Reader, key: str, text: Any, points: dict) -> tuple[str, tuple[float, float]]:
     """Resolve "body.point" (the ground's points as "ground.point")."""
     if not isinstance(text, str) or text.count(".") != 1:
         reader.fail(key, f"expected \"body.point\", got {text!r}")
@@ -153,14 +154,14 @@ def _point(reader: _Reader, key: str, text: Any, points: dict) -> tuple[str, tup
     return body, points[body][point]
 
 
-def _between(reader: _Reader, points: dict) -> tuple[tuple[str, tuple], tuple[str, tuple]]:
+def _between(reader: Reader, points: dict) -> tuple[tuple[str, tuple], tuple[str, tuple]]:
     value = reader.table.get("between")
     if not isinstance(value, list) or len(value) != 2:
         reader.fail("between", f"expected two points [\"body.point\", \"body.point\"], got {value!r}")
     return _point(reader, "between", value[0], points), _point(reader, "between", value[1], points)
 
 
-def _joints(top: _Reader, points: dict) -> tuple[Joint, ...]:
+def _joints(top: Reader, points: dict) -> tuple[Joint, ...]:
     joints = []
     for name, joint in _named(_array(top, "joint", required=True), "joint"):
         kind = joint.string("type", choices=("revolute", "prismatic"))
@@ -181,7 +182,7 @@ def _joints(top: _Reader, points: dict) -> tuple[Joint, ...]:
     return tuple(joints)
 
 
-def _connected(top: _Reader, bodies: tuple[Body, ...], joints: tuple[Joint, ...]) -> None:
+def _connected(top: Reader, bodies: tuple[Body, ...], joints: tuple[Joint, ...]) -> None:
     """Every body reaches the ground through joints."""
     reached, grew = {GROUND}, True
     while grew:
@@ -195,7 +196,7 @@ def _connected(top: _Reader, bodies: tuple[Body, ...], joints: tuple[Joint, ...]
             top.fail(f"body.{body.name}", "is not connected to the ground by any chain of joints")
 
 
-def _drives(top: _Reader, joints: tuple[Joint, ...]) -> tuple[Drive, ...]:
+def _drives(top: Reader, joints: tuple[Joint, ...]) -> tuple[Drive, ...]:
     known = {j.name for j in joints}
     drives, driven = [], set()
     for drive in _array(top, "drive", required=True):
@@ -213,7 +214,7 @@ def _drives(top: _Reader, joints: tuple[Joint, ...]) -> tuple[Drive, ...]:
     return tuple(drives)
 
 
-def _forces(top: _Reader, points: dict) -> tuple[SpringDamper | BodyTorque, ...]:
+def _forces(top: Reader, points: dict) -> tuple[SpringDamper | BodyTorque, ...]:
     forces = []
     for k, force in enumerate(_array(top, "force")):
         name = _name(force) if "name" in force.table else f"force{k + 1}"
@@ -235,7 +236,7 @@ def _forces(top: _Reader, points: dict) -> tuple[SpringDamper | BodyTorque, ...]
     return tuple(forces)
 
 
-def _assembly(table: _Reader, bodies: tuple[Body, ...]) -> dict[str, BodyPose]:
+def _assembly(table: Reader, bodies: tuple[Body, ...]) -> dict[str, BodyPose]:
     names = {b.name for b in bodies}
     table.only(names)
     pose = {}
@@ -254,12 +255,12 @@ def _assembly(table: _Reader, bodies: tuple[Body, ...]) -> dict[str, BodyPose]:
     return pose
 
 
-def _gravity(table: _Reader) -> tuple[float, float]:
+def _gravity(table: Reader) -> tuple[float, float]:
     table.only({"gravity"})
     return _pair(table, "gravity", "[gx, gy] in m/s²") if "gravity" in table.table else (0.0, 0.0)
 
 
-def _time(table: _Reader) -> TimeGrid:
+def _time(table: Reader) -> TimeGrid:
     table.only({"end", "samples"})
     samples = table.table.get("samples")
     if isinstance(samples, bool) or not isinstance(samples, int):
@@ -273,7 +274,6 @@ def _solvable(scenario: Scenario, source) -> None:
     """Assemble the mechanism and follow it over the run: refuses what the
     general reference cannot solve, naming the key and, for an instant,
     the time. (Each sample's own solve, at run time, refuses the same way.)"""
-    from mechval.linkages import build_mechanism
     try:
         PlanarSolver(build_mechanism(scenario)).check(0.0, scenario.time.end)
     except MechanismError as exc:

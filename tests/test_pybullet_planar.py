@@ -356,3 +356,6 @@ def test_the_model_holds_only_the_scene(adapter, name):
     mechanism = build_mechanism(scenario)
     table = adapter.audit(mechanism, scenario.time.t, adapter.settings_for(scenario, mechanism))
     assert failures(table).empty, "\n" + format_audit(failures(table))
+    audited = set(table["item"])
+    assert {f"force {f.name}" for f in mechanism.forces} <= audited
+    assert {f"drive {d.name}" for d in mechanism.extra_drives} <= audited

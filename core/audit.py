@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from .kinematics import rotate
-from .mechanism import GROUND, Joint, Mechanism
+from .mechanism import GROUND, BodyTorque, Joint, Mechanism
 
 #: Engines store what they are given in float64 (PyBullet too; only its
 #: `getLinkState` link-frame output is float32, and the audits do not use it)
@@ -175,6 +175,43 @@ def expected_model(mech: Mechanism) -> list[Expectation]:
              Expectation(SCENE, "gravity y", mech.gravity[1], "m/s²", g),
              Expectation(SCENE, "gravity z", 0.0, "m/s²", g)]
     rows += [Expectation(SCENE, effect, absent) for effect, absent in ABSENT_EFFECTS.items()]
+    return rows + expected_elements(mech)
+
+
+def drive_item(name: str) -> str:
+    """The item of a drive after the first ("drive" is the first's)."""
+    return f"drive {name}"
+
+
+def force_item(name: str) -> str:
+    return f"force {name}"
+
+
+def expected_elements(mech: Mechanism) -> list[Expectation]:
+    """The drives after the first (joint and law) and the force elements:
+    a spring-damper's bodies, points (each body's frame), stiffness, free
+    length and damping; a body torque's body and torque."""
+    length = length_scale(mech)
+    rows: list[Expectation] = []
+    for d in mech.extra_drives:
+        item, law = drive_item(d.name), d.law
+        size = max(abs(law.phi0), abs(law.omega0), abs(law.alpha)) or 1.0
+        unit = "rad" if mech.joint(d.joint).kind == "revolute" else "m"
+        rows += [Expectation(item, "joint", d.joint), Expectation(item, "phi0", law.phi0, unit, size),
+                 Expectation(item, "omega0", law.omega0, f"{unit}/s", size),
+                 Expectation(item, "alpha", law.alpha, f"{unit}/s²", size)]
+    for f in mech.forces:
+        item = force_item(f.name)
+        if isinstance(f, BodyTorque):
+            rows += [Expectation(item, "body", f.body), Expectation(item, "torque", f.torque, "N·m", abs(f.torque))]
+            continue
+        rows.append(Expectation(item, "bodies", f"{f.body_a}–{f.body_b}"))
+        for body, point in ((f.body_a, f.point_a), (f.body_b, f.point_b)):
+            rows += [Expectation(item, point_quantity(body, "x"), point[0], "m", length),
+                     Expectation(item, point_quantity(body, "y"), point[1], "m", length)]
+        rows += [Expectation(item, "stiffness", f.stiffness, "N/m", abs(f.stiffness)),
+                 Expectation(item, "free length", f.free_length, "m", length),
+                 Expectation(item, "damping", f.damping, "N·s/m", abs(f.damping))]
     return rows
 
 

@@ -42,17 +42,18 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from typing import Any, Callable, ClassVar, Mapping
 
 import numpy as np
 import pandas as pd
-from mechval.kinematics import joint_gaps, rigid_velocity, rotate_scalar
-from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism
+from mechval.kinematics import joint_gaps, rigid_velocity, rotate_scalar, slide_motion
+from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyTorque, Drive, Mechanism, SpringDamper
 
-from mechval.adapter import as_float, steps_per_interval
+from mechval.adapter import FEATURES, as_float, steps_per_interval
 
 from .base import EngineAdapter, RawRun, RunInfo, default_step
-from .pybullet_model import NO_CAP, Model, build, p   # p: pybullet, imported quietly there
+from .pybullet_model import NO_CAP, Model, TreeJoint, build, p   # p: pybullet, imported quietly there
 from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_slides, slide_reaction
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
@@ -79,6 +80,9 @@ class PybulletAdapter(EngineAdapter):
     #: `mechval cost` has one line here: the solver is not a setting (Dantzig
     #: LCP, exact; the iterative ones stop early, docs/engines.md).
     cost_variants = {"Dantzig": {}}
+    #: Every drive is a position-controlled leaf joint; spring-dampers and
+    #: body torques are external loads set every step (Stepper).
+    features = frozenset(FEATURES)
 
     step_settings = ("timestep", "preroll_steps")
     output_copies, bytes_per_step = 32, 32
@@ -117,12 +121,11 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
         wall = time.perf_counter() - built
     finally:
         p.disconnect(model.client)
-    drive = mechanism.joint(mechanism.drive.joint)
-    relative = frame[f"{drive.body_j}.theta"] - (0.0 if drive.body_i == GROUND else frame[f"{drive.body_i}.theta"])
     info = {
         "timestep_used": dt, "steps": steps,
         "closure_gap_max": float(joint_gaps(mechanism, frame).max()),
-        "drive_error_max": float(np.abs(relative - mechanism.drive.law.angle(times)).max()),
+        "drive_error_max": max(float(np.abs(drive_coordinate(mechanism, d, frame) - d.law.angle(times)).max())
+                               for d in mechanism.drives),
         "build_time_s": built - started, "wall_time_s": wall,
     }
     missing = {}
@@ -139,6 +142,15 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     return RawRun(frame, missing, RunInfo.of(info))
 
 
+def drive_coordinate(mechanism: Mechanism, drive: Drive, frame: pd.DataFrame) -> np.ndarray:
+    """What `drive` prescribes, from the run's motion: θj − θi of a revolute
+    joint, the slide s of a prismatic one."""
+    joint = mechanism.joint(drive.joint)
+    if joint.kind == "prismatic":
+        return np.asarray(slide_motion(frame, joint)["s"], dtype=float)
+    return np.asarray(frame[f"{joint.body_j}.theta"] - (0.0 if joint.body_i == GROUND else frame[f"{joint.body_i}.theta"]))
+
+
 def step_plan(times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, int, int]:
     """The step dt (the setting, shortened so that a sample interval holds a
     whole number of steps), steps per sample interval, pre-roll steps.
@@ -148,40 +160,66 @@ def step_plan(times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, in
     return interval / per_sample, per_sample, int(settings["preroll_steps"])
 
 
+@dataclass(frozen=True)
+class Motor:
+    """One drive as PyBullet runs it: the position-controlled multibody joint
+    of its joint, and the sign of its coordinate (+1 when the link is the
+    joint's body_j: q = θj − θi or s; −1 when it is body_i)."""
+
+    drive: Drive
+    joint: TreeJoint
+    sign: float
+    column: str
+
+
 class Stepper:
-    """The stepping loop of one run: drive target, dampers, readings."""
+    """The stepping loop of one run: drive targets, dampers, spring-dampers,
+    body torques, readings.
+
+    PyBullet has no spring element between bodies and keeps no load from
+    one step to the next, so the Mechanism's dampers, spring-dampers and
+    body torques are external loads (`applyExternalForce`/`Torque`) set
+    before every step; what was applied in a sampled step is kept for the
+    derived slide reactions (`loads`)."""
 
     def __init__(self, mechanism: Mechanism, model: Model, times: np.ndarray, per_sample: int, preroll: int):
         self.mech, self.model, self.times = mechanism, model, np.asarray(times, dtype=float)
         self.per_sample, self.preroll, self.c = per_sample, preroll, model.client
         self.dt = model.timestep
-        drive = mechanism.joint(mechanism.drive.joint)
-        self.drive = model.tree_joints[drive.name]
-        self.drive_sign = 1.0 if self.drive.child == drive.body_j else -1.0
+        self.motors = []
+        for d in mechanism.drives:
+            joint = mechanism.joint(d.joint)
+            tree_joint = model.tree_joints[joint.name]
+            self.motors.append(Motor(d, tree_joint, 1.0 if tree_joint.child == joint.body_j else -1.0,
+                                     d.effort_column(joint.kind)))
+        self.drive = self.motors[0].joint
         self.damped = mechanism.damped_joints
+        self.springs = tuple(f for f in mechanism.forces if isinstance(f, SpringDamper))
+        self.torques = tuple(f for f in mechanism.forces if isinstance(f, BodyTorque))
         self.slides = derived_slides(mechanism)
-        #: External loads (dampers) applied in the current step, per body:
-        #: force x, y and its moment about the world origin.
+        #: External loads applied in the current step, per body: force x, y
+        #: and its moment about the world origin.
         self.loads: dict[str, list[float]] = {}
+        #: Per spring-damper: its length at the last step and its mid-step
+        #: rate of length over the last step (None before the first step).
+        self.spring_history: dict[str, tuple[float, float | None]] = {}
 
     def run(self) -> tuple[pd.DataFrame, int]:
         n_samples = len(self.times)
         total = self.preroll + (n_samples - 1) * self.per_sample + 1
         t_next = self.times[0] + (np.arange(total) - self.preroll + 1) * self.dt
-        law = self.mech.drive.law
-        # Lands the crank exactly on φ(t_n+1) (motor PD with unit gains).
-        sign = self.drive_sign
-        target_pos = sign * (law.angle(t_next) - self.dt * law.rate(t_next))
-        target_vel = sign * law.rate(t_next)
-        h = self.drive.handle
+        # Lands each drive joint exactly on φ(t_n+1) (motor PD with unit gains).
+        targets = [(m, m.sign * (m.drive.law.angle(t_next) - self.dt * m.drive.law.rate(t_next)),
+                    m.sign * m.drive.law.rate(t_next)) for m in self.motors]
         before, after, reactions, earlier, loads = [], [], [], [], []
         previous_rates = state = None
+        every_step = bool(self.damped or self.springs)
         sampled_at = lambda n: n >= self.preroll and (n - self.preroll) % self.per_sample == 0  # noqa: E731
         for n in range(total):
             sampled = sampled_at(n)
             # A derived slide reaction needs the positions one step before
             # each sample (pybullet_slide).
-            if sampled or self.damped or (self.slides and sampled_at(n + 1)):
+            if sampled or every_step or (self.slides and sampled_at(n + 1)):
                 previous, state = state, self.read_bodies()
             if sampled:
                 before.append(state)
@@ -189,11 +227,17 @@ class Stepper:
             self.loads = {}
             if self.damped:
                 previous_rates = self.apply_dampers(state, previous_rates)
+            if self.springs:
+                self.apply_springs(state)
+            if self.torques:
+                self.apply_torques()
             if sampled:
                 loads.append(self.loads)
-            p.setJointMotorControl2(h.uid, h.link, p.POSITION_CONTROL, targetPosition=target_pos[n],
-                                    targetVelocity=target_vel[n], positionGain=1.0, velocityGain=1.0,
-                                    force=NO_CAP, physicsClientId=self.c)
+            for motor, target_pos, target_vel in targets:
+                h = motor.joint.handle
+                p.setJointMotorControl2(h.uid, h.link, p.POSITION_CONTROL, targetPosition=target_pos[n],
+                                        targetVelocity=target_vel[n], positionGain=1.0, velocityGain=1.0,
+                                        force=NO_CAP, physicsClientId=self.c)
             p.stepSimulation(physicsClientId=self.c)
             if sampled:
                 after.append(self.read_bodies())
@@ -268,6 +312,55 @@ class Stepper:
                 on_body[2] += x * fy - y * fx
         return rates
 
+    def push(self, body: str, force: tuple[float, float], at: tuple[float, float], torque: float = 0.0) -> None:
+        """Apply a load on a moving body for the coming step (world axes,
+        force at a world point, plus a couple) and record it in `loads`."""
+        h = self.model.bodies[body]
+        on_body = self.loads.setdefault(body, [0.0, 0.0, 0.0])
+        if force != (0.0, 0.0):
+            p.applyExternalForce(h.uid, h.link, (force[0], force[1], 0.0), (at[0], at[1], 0.0), p.WORLD_FRAME,
+                                 physicsClientId=self.c)
+            on_body[0] += force[0]
+            on_body[1] += force[1]
+            on_body[2] += at[0] * force[1] - at[1] * force[0]
+        if torque:
+            p.applyExternalTorque(h.uid, h.link, (0.0, 0.0, torque), p.WORLD_FRAME, physicsClientId=self.c)
+            on_body[2] += torque
+
+    def apply_springs(self, state: dict[str, BodyState]) -> None:
+        """Each spring-damper's tension k·(ℓ − ℓ0) + c·ℓ̇ along the line of
+        its points, pulling them together, for the coming step. ℓ is read
+        at t_n; ℓ̇ at t_n is the mid-step rate (ℓ_n − ℓ_n−1)/dt extrapolated,
+        1.5·v_n − 0.5·v_n−1 (as the joint dampers' rates; i.e. the
+        second-order backward difference of ℓ). The first step, with no
+        earlier length, takes the rate of the point velocities as read."""
+        for spring in self.springs:
+            sa, sb = state.get(spring.body_a, AT_REST), state.get(spring.body_b, AT_REST)
+            ra, rb = rotate_scalar(sa[2], spring.point_a), rotate_scalar(sb[2], spring.point_b)
+            pa, pb = (sa[0] + ra[0], sa[1] + ra[1]), (sb[0] + rb[0], sb[1] + rb[1])
+            dx, dy = pb[0] - pa[0], pb[1] - pa[1]
+            length = math.hypot(dx, dy)
+            ex, ey = dx / length, dy / length
+            last = self.spring_history.get(spring.name)
+            if last is None:
+                va, vb = _point_velocity(sa, spring.point_a), _point_velocity(sb, spring.point_b)
+                mid = (vb[0] - va[0]) * ex + (vb[1] - va[1]) * ey
+            else:
+                mid = (length - last[0]) / self.dt
+            previous_mid = mid if last is None or last[1] is None else last[1]
+            self.spring_history[spring.name] = (length, mid)
+            tension = (spring.stiffness * (length - spring.free_length)
+                       + spring.damping * (1.5 * mid - 0.5 * previous_mid))
+            for body, point, sign in ((spring.body_a, pa, 1.0), (spring.body_b, pb, -1.0)):
+                if body != GROUND:
+                    self.push(body, (sign * tension * ex, sign * tension * ey), point)
+
+    def apply_torques(self) -> None:
+        """Every constant body torque, for the coming step."""
+        for torque in self.torques:
+            if torque.body != GROUND:
+                self.push(torque.body, (0.0, 0.0), (0.0, 0.0), torque.torque)
+
     def read_reactions(self) -> dict[str, float]:
         """Fij of every joint and the drive torque, from the step just taken."""
         out = {}
@@ -282,8 +375,9 @@ class Stepper:
             force = p.getConstraintState(lc.cid, physicsClientId=self.c)
             sign = 1.0 if lc.child == lc.joint.body_j else -1.0
             out[f"{name}.Fx"], out[f"{name}.Fy"] = sign * force[0], sign * force[1]
-        h = self.drive.handle
-        out[DRIVE_TORQUE] = self.drive_sign * p.getJointState(h.uid, h.link, physicsClientId=self.c)[3]
+        for motor in self.motors:
+            h = motor.joint.handle
+            out[motor.column] = motor.sign * p.getJointState(h.uid, h.link, physicsClientId=self.c)[3]
         return out
 
     def slide_reactions(self, frame: pd.DataFrame, earlier: list, before: list, after: list,

@@ -35,8 +35,9 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (DRIVE, SCENE, Reading, audit, axis_readings, bodies_text, body_item, expected_model, inertia_readings,
-                           joint_item, listing, point_readings, to_body)
+from mechval.audit import (DRIVE, SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item,
+                           expected_model, force_item, inertia_readings, joint_item, listing, point_quantity,
+                           point_readings, to_body)
 from mechval.kinematics import slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism
 
@@ -150,7 +151,7 @@ class Reader:
     def readings(self, peak_rate: float) -> list[Reading]:
         out = [r for b in self.mech.bodies for r in self.body(b.name)]
         out += [r for j in self.mech.joints for r in self.joint(j)]
-        return out + self.drive() + self.scene(peak_rate) + self.notes()
+        return out + self.drive() + self.forces() + self.scene(peak_rate) + self.notes()
 
     def body(self, name: str) -> list[Reading]:
         h = self.model.bodies[name]
@@ -223,9 +224,35 @@ class Reader:
     def drive(self) -> list[Reading]:
         law = ("Not in the model: the stepping loop sets a position target from the Mechanism's φ(t) every step "
                "(POSITION_CONTROL, gains 1/1, force cap 1e12).")
-        return [Reading(DRIVE, "joint", self.stepper.drive.joint.name,
-                        "The joint whose motor the stepping loop drives.", "set"),
-                *(Reading(DRIVE, q, "stepping loop", law, "note") for q in ("phi0", "omega0", "alpha"))]
+        rows = []
+        for k, motor in enumerate(self.stepper.motors):
+            item = DRIVE if k == 0 else drive_item(motor.drive.name)
+            rows += [Reading(item, "joint", motor.joint.joint.name,
+                             "The joint whose motor the stepping loop drives.", "set"),
+                     *(Reading(item, q, "stepping loop", law, "note") for q in ("phi0", "omega0", "alpha"))]
+        return rows
+
+    def forces(self) -> list[Reading]:
+        """The spring-dampers and body torques the stepping loop will apply
+        (PyBullet has no spring element and keeps no load: they are not in
+        the model, so the values are those of a `Stepper` of it)."""
+        applied = "Not in the model: applied every step by the stepping loop as external loads"
+        rows = []
+        for spring in self.stepper.springs:
+            item = force_item(spring.name)
+            rows.append(Reading(item, "bodies", f"{spring.body_a}–{spring.body_b}", applied, "set"))
+            for body, point in ((spring.body_a, spring.point_a), (spring.body_b, spring.point_b)):
+                rows += [Reading(item, point_quantity(body, axis), value, applied, "set")
+                         for axis, value in zip("xy", point)]
+            rows += [Reading(item, "stiffness", spring.stiffness, applied, "set"),
+                     Reading(item, "free length", spring.free_length, applied, "set"),
+                     Reading(item, "damping", spring.damping,
+                             f"{applied}; the rate of length is extrapolated to the step's start", "set")]
+        for torque in self.stepper.torques:
+            item = force_item(torque.name)
+            rows += [Reading(item, "body", torque.body, applied, "set"),
+                     Reading(item, "torque", torque.torque, applied, "set")]
+        return rows
 
     def scene(self, peak_rate: float) -> list[Reading]:
         c = self.c
@@ -238,10 +265,10 @@ class Reader:
         limits += [f"{key} set on link {k} of multibody {u}" for f, u, k, kw in self.calls if f == "changeDynamics"
                    for key in ("jointLowerLimit", "jointUpperLimit", "jointLimitForce") if key in kw]
         friction = [f"jointFriction {info[7]:g} on link {link} of multibody {uid}" for uid, link, info in joints if info[7]]
-        drive = self.stepper.drive.handle
+        drives = {(m.joint.handle.uid, m.joint.handle.link) for m in self.stepper.motors}
         motors = []
         for uid, link, _ in joints:
-            if (uid, link) == (drive.uid, drive.link):
+            if (uid, link) in drives:
                 continue
             mode = self.call("setJointMotorControl2", uid, link, "mode", None)
             force = self.call("setJointMotorControl2", uid, link, "force", None)
@@ -288,7 +315,8 @@ class Reader:
                     "The stepping loop damps only the Mechanism's damped joints (joint rows)", "set"),
             Reading(SCENE, "other loads", "not readable",
                     "PyBullet has no getter for loads: they are applied per step; the stepping loop applies the "
-                    "dampers' loads and the drive motor only", "note"),
+                    "dampers' loads, the spring-dampers, the body torques (force rows) and the drive motors "
+                    "only", "note"),
             Reading(SCENE, "other constraints", listing(constraints), "multibody joints and user constraints"),
         ]
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from .base import native_output_silenced
+from .base import Unrepresentable, native_output_silenced
 
 with native_output_silenced():      # PyBullet prints its build time on import
     import pybullet as p
@@ -91,20 +91,27 @@ def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
     """Multibodies as {root body: its joints (joint, parent, child), parents
     first}; every joint not listed closes the loop as a user constraint.
 
-    "split": every multibody is a root with leaf links only. The drive joint
-    is a leaf of the ground (its motor); every prismatic joint is a leaf
+    "split": every multibody is a root with leaf links only. Every drive
+    joint is a leaf (its motor; a drive between two moving bodies makes one
+    of them the root of the other); every prismatic joint is a leaf
     (PyBullet's slider constraint has 5 rows, which over-constrain a planar
     loop closed by point-to-point constraints); the other ground joints are
     leaves of the ground where the body is still free; every body left over
-    is the root of its own multibody. "tree": one breadth-first spanning
-    tree from the ground (the naive layout).
+    is the root of its own multibody. Any number of closed loops: every
+    joint not placed closes one as a constraint. "tree": one breadth-first
+    spanning tree from the ground (the naive layout).
+
+    Raises Unrepresentable when a drive joint cannot be a multibody joint
+    (only those have a motor).
     """
-    drive = mechanism.joint(mechanism.drive.joint)
-    if GROUND not in (drive.body_i, drive.body_j) or drive.kind != "revolute":
-        raise ValueError(f"pybullet: the drive joint {drive.name!r} must be a revolute joint to the ground")
+    drives = [mechanism.joint(d.joint) for d in mechanism.drives]
     if layout == "tree":
         links = _breadth_first(mechanism)
         in_tree = {joint.name for joint, _, _ in links}
+        for joint in drives:
+            if joint.name not in in_tree:
+                raise Unrepresentable("drive", f"layout 'tree' closes a loop at the drive joint {joint.name!r}, "
+                                               "which then has no motor; use layout 'split'")
         for joint in mechanism.joints:
             if joint.kind == "prismatic" and joint.name not in in_tree:
                 # A point-to-point constraint there would pin the slide (found by the model audit).
@@ -125,12 +132,16 @@ def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
                 return True
         return False
 
-    attach(drive)
+    for joint in drives:
+        if not attach(joint):
+            raise Unrepresentable("drive", f"the drive joint {joint.name!r} cannot be made a leaf of a multibody "
+                                           "(both its bodies already carry or hang from other drive joints), "
+                                           "so it would have no motor")
     for joint in mechanism.joints:
-        if joint.kind == "prismatic" and not attach(joint):
+        if joint.kind == "prismatic" and joint not in drives and not attach(joint):
             raise ValueError(f"pybullet: prismatic joint {joint.name!r} cannot be made a leaf")
     for joint in mechanism.joints:
-        if GROUND in (joint.body_i, joint.body_j) and joint.name != drive.name and joint.kind == "revolute":
+        if GROUND in (joint.body_i, joint.body_j) and joint.kind == "revolute":
             attach(joint)
     for body in mechanism.bodies:
         if body.name not in children:

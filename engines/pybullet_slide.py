@@ -15,9 +15,12 @@ PyBullet's own simulation implies (Newton–Euler on body j = J's body_j):
 
 P is J's point on body j (the couple is taken there, as everywhere); the
 sums run over body j's other joints k, with the forces F_k→j at their points
-P_k and the couples M_k→j (another slide's couple, the drive torque) exactly
-as PyBullet reports them (constraint forces and leaf sensors); F_ext and
-M_ext(P) are the damper loads the adapter applied in the step.
+P_k and the couples M_k→j (another slide's couple, a drive torque) exactly
+as PyBullet reports them (constraint forces and leaf sensors), a slide
+drive's force along its axis (J's own too: F_J is the slide's reaction
+alone, as in the reference, the drive force F being its own column); F_ext
+and M_ext(P) are the loads the adapter applied in the step (dampers,
+spring-dampers, body torques).
 
 Time stamps (docs/engines.md): the forces read after the step from t_n to
 t_n+1 belong to t_n, and so does this balance. PyBullet's semi-implicit
@@ -36,7 +39,7 @@ from typing import Mapping
 
 import numpy as np
 from mechval.kinematics import rotate
-from mechval.mechanism import DRIVE_TORQUE, GROUND, Joint, Mechanism
+from mechval.mechanism import GROUND, Joint, Mechanism
 
 #: What the run info says about each derived slide (users see that the
 #: column is derived, not read).
@@ -94,18 +97,31 @@ def slide_reaction(mechanism: Mechanism, joint: Joint, track: BodyTrack, reactio
     net = body.mass * (accel - np.asarray(mechanism.gravity))
     force = net.copy()
     moment = body.izz * alpha + _cross(com(at) - P, net)
+    efforts = {d.joint: d.effort_column(mechanism.joint(d.joint).kind) for d in mechanism.drives}
     for other in mechanism.joints:
-        if other is joint or body.name not in (other.body_i, other.body_j):
+        if body.name not in (other.body_i, other.body_j):
             continue
         sign = 1.0 if other.body_j == body.name else -1.0
-        f = sign * np.column_stack((_column(reactions, f"{other.name}.Fx"), _column(reactions, f"{other.name}.Fy")))
         point = other.point_j if other.body_j == body.name else other.point_i
+        if other is not joint:
+            f = sign * np.column_stack((_column(reactions, f"{other.name}.Fx"),
+                                        _column(reactions, f"{other.name}.Fy")))
+            force -= f
+            moment -= _cross(_points(at, point) - P, f)
+            if other.kind == "prismatic":
+                moment -= sign * _column(reactions, f"{other.name}.M")
+        if other.name not in efforts:
+            continue
+        effort = sign * _column(reactions, efforts[other.name])
+        if other.kind == "revolute":
+            moment -= effort
+            continue
+        # A slide's drive force along its axis u (turning with body_i, whose
+        # angle is θj − the held angle), at its point on this body.
+        theta_i = at[:, 2] - (other.held_angle if sign > 0 else 0.0)
+        f = effort[:, None] * np.column_stack(rotate(theta_i, other.axis))
         force -= f
         moment -= _cross(_points(at, point) - P, f)
-        if other.kind == "prismatic":
-            moment -= sign * _column(reactions, f"{other.name}.M")
-        if other.name == mechanism.drive.joint:
-            moment -= sign * _column(reactions, DRIVE_TORQUE)
     force -= loads[:, :2]
     moment -= loads[:, 2] - _cross(P, loads[:, :2])
     return {f"{joint.name}.Fx": force[:, 0], f"{joint.name}.Fy": force[:, 1], f"{joint.name}.M": moment}

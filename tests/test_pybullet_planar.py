@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import tomllib
 
-import numpy as np
 import pytest
 
 from conftest import engine_or_skip

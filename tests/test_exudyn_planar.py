@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import tomllib
 
-import numpy as np
 import pytest
 
 from conftest import engine_or_skip
@@ -22,7 +21,6 @@ from mechval.audit import failures, format_audit
 from mechval.compare import compare, format_records, passed
 from mechval.harness.audit_run import audit_scenario
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
 from mechval.scenarios import parse
 
 pytestmark = pytest.mark.engine     # every test here runs Exudyn

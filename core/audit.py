@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from .kinematics import rotate
-from .mechanism import GROUND, BodyTorque, Joint, Mechanism
+from .mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
 
 #: Engines store what they are given in float64 (PyBullet too; only its
 #: `getLinkState` link-frame output is float32, and the audits do not use it)
@@ -164,55 +164,49 @@ def expected_model(mech: Mechanism) -> list[Expectation]:
                      Expectation(item, "relative rotation", "locked")]
         unit = "N·m·s/rad" if j.kind == "revolute" else "N·s/m"
         rows.append(Expectation(item, "damping", j.damping, unit, abs(j.damping)))
-    law = mech.drive.law
-    size = max(abs(law.phi0), abs(law.omega0), abs(law.alpha)) or 1.0
-    rows += [Expectation(DRIVE, "joint", mech.drive.joint),
-             Expectation(DRIVE, "phi0", law.phi0, "rad", size),
-             Expectation(DRIVE, "omega0", law.omega0, "rad/s", size),
-             Expectation(DRIVE, "alpha", law.alpha, "rad/s²", size)]
+    for drive in mech.drives:
+        item = drive_item(mech, drive)
+        law = drive.law
+        size = max(abs(law.phi0), abs(law.omega0), abs(law.alpha)) or 1.0
+        unit = "rad" if mech.joint(drive.joint).kind == "revolute" else "m"
+        rows += [Expectation(item, "joint", drive.joint),
+                 Expectation(item, "phi0", law.phi0, unit, size),
+                 Expectation(item, "omega0", law.omega0, f"{unit}/s", size),
+                 Expectation(item, "alpha", law.alpha, f"{unit}/s²", size)]
+    for force in mech.forces:
+        rows += _force_expectations(force, length)
     g = float(np.hypot(*mech.gravity))
     rows += [Expectation(SCENE, "gravity x", mech.gravity[0], "m/s²", g),
              Expectation(SCENE, "gravity y", mech.gravity[1], "m/s²", g),
              Expectation(SCENE, "gravity z", 0.0, "m/s²", g)]
     rows += [Expectation(SCENE, effect, absent) for effect, absent in ABSENT_EFFECTS.items()]
-    return rows + expected_elements(mech)
-
-
-def drive_item(name: str) -> str:
-    """The item of a drive after the first ("drive" is the first's)."""
-    return f"drive {name}"
-
-
-def force_item(name: str) -> str:
-    return f"force {name}"
-
-
-def expected_elements(mech: Mechanism) -> list[Expectation]:
-    """The drives after the first (joint and law) and the force elements:
-    a spring-damper's bodies, points (each body's frame), stiffness, free
-    length and damping; a body torque's body and torque."""
-    length = length_scale(mech)
-    rows: list[Expectation] = []
-    for d in mech.extra_drives:
-        item, law = drive_item(d.name), d.law
-        size = max(abs(law.phi0), abs(law.omega0), abs(law.alpha)) or 1.0
-        unit = "rad" if mech.joint(d.joint).kind == "revolute" else "m"
-        rows += [Expectation(item, "joint", d.joint), Expectation(item, "phi0", law.phi0, unit, size),
-                 Expectation(item, "omega0", law.omega0, f"{unit}/s", size),
-                 Expectation(item, "alpha", law.alpha, f"{unit}/s²", size)]
-    for f in mech.forces:
-        item = force_item(f.name)
-        if isinstance(f, BodyTorque):
-            rows += [Expectation(item, "body", f.body), Expectation(item, "torque", f.torque, "N·m", abs(f.torque))]
-            continue
-        rows.append(Expectation(item, "bodies", f"{f.body_a}–{f.body_b}"))
-        for body, point in ((f.body_a, f.point_a), (f.body_b, f.point_b)):
-            rows += [Expectation(item, point_quantity(body, "x"), point[0], "m", length),
-                     Expectation(item, point_quantity(body, "y"), point[1], "m", length)]
-        rows += [Expectation(item, "stiffness", f.stiffness, "N/m", abs(f.stiffness)),
-                 Expectation(item, "free length", f.free_length, "m", length),
-                 Expectation(item, "damping", f.damping, "N·s/m", abs(f.damping))]
     return rows
+
+
+def drive_item(mech: Mechanism, drive: Drive) -> str:
+    """The first drive's rows are "drive" (as before several drives); the
+    others' "drive NAME"."""
+    return DRIVE if drive == mech.drive else f"{DRIVE} {drive.name}"
+
+
+def force_item(force: SpringDamper | BodyTorque) -> str:
+    return f"{'spring' if isinstance(force, SpringDamper) else 'torque'} {force.name}"
+
+
+def _force_expectations(force: SpringDamper | BodyTorque, length: float) -> list[Expectation]:
+    """A spring-damper's bodies, points (a and b, body frames), stiffness,
+    free length and damping; a body torque's body and torque."""
+    item = force_item(force)
+    if isinstance(force, BodyTorque):
+        return [Expectation(item, "body", force.body),
+                Expectation(item, "torque", force.torque, "N·m", abs(force.torque))]
+    rows = [Expectation(item, "bodies", f"{force.body_a}–{force.body_b}")]
+    for end, point in (("a", force.point_a), ("b", force.point_b)):
+        rows += [Expectation(item, f"point {end} x", point[0], "m", length),
+                 Expectation(item, f"point {end} y", point[1], "m", length)]
+    return rows + [Expectation(item, "stiffness", force.stiffness, "N/m", abs(force.stiffness)),
+                   Expectation(item, "free length", force.free_length, "m", length),
+                   Expectation(item, "damping", force.damping, "N·s/m", abs(force.damping))]
 
 
 def _verdict(expected: Expectation, reading: Reading, rtol: float) -> tuple[str, float]:

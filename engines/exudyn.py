@@ -16,9 +16,14 @@ Conversion of Exudyn's native outputs to the mechval convention:
   is the force on body_i from body_j in body_i's frame (measured with a
   turned guide), so Fij = −R(θi)·ForceLocal. Its third component stays 0
   even under a couple: M is reported missing with that reason.
-- Drive: the coordinate constraint on (q_i, q_j) has multiplier λ (`Force`
-  output); the torque on body_j is T = −λ (docs/engines.md; the sign test
-  against the reference confirms it).
+- Drives: each a coordinate constraint q1 − q0 = offset(t), on the
+  rotation coordinates (revolute) or on a ground coordinate and the slide
+  (prismatic); its multiplier λ (`Force` output) gives the effort on
+  body_j, T = −λ or F = −λ along the axis (docs/engines.md; the sign tests
+  against the reference confirm both).
+- Spring-dampers and body torques are engine elements
+  (`ObjectConnectorSpringDamper`, `LoadTorqueVector`); they have no
+  column of their own.
 - Time stamp: the implicit solvers satisfy the equations of motion and the
   constraints at the end of every step, so the sensor value recorded after
   the step to t_n+1 belongs to t_n+1 (no half-step shift as in explicit
@@ -37,10 +42,11 @@ from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
+from mechval.health import drive_errors
 from mechval.kinematics import joint_gaps, point_motion, rotate
-from mechval.mechanism import DRIVE_TORQUE, GROUND, MOTION_QUANTITIES, Mechanism
+from mechval.mechanism import GROUND, MOTION_QUANTITIES, Mechanism
 
-from mechval.adapter import as_float, steps_per_interval
+from mechval.adapter import FEATURES, as_float, steps_per_interval
 
 from .base import EngineAdapter, RawRun, RunInfo, default_step
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
@@ -95,6 +101,9 @@ class ExudynAdapter(EngineAdapter):
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"index2": {}, "index3": {"solver": "index3"}}
 
     step_settings = ("timestep", "pre_roll_steps", "spectral_radius")
+    #: Every drive a coordinate constraint, springs and torques engine
+    #: elements (`exudyn_model`).
+    features = frozenset(FEATURES)
     output_copies, bytes_per_step = 4, 1600       # every sensor at every step
 
     def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
@@ -246,13 +255,12 @@ def _frame(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str, 
             columns[f"{joint.name}.Fx"], columns[f"{joint.name}.Fy"] = fx, fy
             columns[f"{joint.name}.M"] = np.full(len(rows), np.nan)
             missing[f"{joint.name}.M"] = NO_PRISMATIC_COUPLE
-    columns[DRIVE_TORQUE] = -model.mbs.GetSensorStoredData(model.drive_sensor)[rows, 1]
+    for drive in mechanism.drives:
+        effort = drive.effort_column(mechanism.joint(drive.joint).kind)
+        columns[effort] = -model.mbs.GetSensorStoredData(model.drive_sensors[drive.name])[rows, 1]
 
     gap = joint_gaps(mechanism, motion)
-    drive = mechanism.joint(mechanism.drive.joint)
-    relative = _theta(motion, drive.body_j) - _theta(motion, drive.body_i)
-    drive_error = np.abs(relative - mechanism.drive.law.angle(t_all))
-    return pd.DataFrame(columns), missing, gap, drive_error
+    return pd.DataFrame(columns), missing, gap, drive_errors(mechanism, motion)
 
 
 def _frame_motion(mechanism: Mechanism, state: dict[str, dict[str, np.ndarray]],

@@ -29,10 +29,10 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (DRIVE, SCENE, Reading, audit, axis_readings, body_item, bodies_text, expected_model,
-                           joint_item, listing, point_readings, to_body)
+from mechval.audit import (SCENE, Reading, audit, axis_readings, body_item, bodies_text, drive_item, expected_model,
+                           force_item, joint_item, listing, point_readings, to_body)
 from mechval.kinematics import rotate
-from mechval.mechanism import GROUND, Joint, Mechanism
+from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
 
 from .exudyn import prepare
 from .exudyn_model import ExudynModel
@@ -40,7 +40,7 @@ from .exudyn_model import ExudynModel
 ENGINE = "exudyn"
 #: Item types the adapter's model is made of; anything else is listed.
 KNOWN_OBJECTS = {"Ground", "RigidBody2D", "JointRevolute2D", "JointPrismatic2D", "ConnectorCoordinate",
-                 "ConnectorCoordinateSpringDamper"}
+                 "ConnectorCoordinateSpringDamper", "ConnectorSpringDamper"}
 #: Relative agreement for the drive's consistency checks (rounding only).
 ROUNDING = 1e-12
 
@@ -69,6 +69,7 @@ class Reader:
                             if o["objectType"] == "RigidBody2D" and int(o["nodeNumber"]) in node_body}
         self.object_body |= {i: GROUND for i, o in enumerate(self.objects) if o["objectType"] == "Ground"}
         self.used: set[int] = set()     # objects accounted for
+        self.used_loads: set[int] = set()
 
     def readings(self) -> list[Reading]:
         out = [r for body in self.mech.bodies for r in self.body(body.name)]
@@ -78,7 +79,9 @@ class Reader:
                         "ConnectorCoordinateSpringDamper on the joint's relative coordinate"
                         if j.name in dampers else "no spring-damper on this joint's coordinate")
                 for j in self.mech.joints]
-        return out + self.drive() + self.scene(other_dampers, springs)
+        out += [r for drive in self.mech.drives for r in self.drive(drive)]
+        out += [r for force in self.mech.forces for r in self.force(force)]
+        return out + self.scene(other_dampers, springs)
 
     # -- bodies and points --------------------------------------------------------------
 
@@ -207,41 +210,120 @@ class Reader:
                     return j.name, float(axis @ axis)
         return None, 0.0
 
-    # -- drive and scene ------------------------------------------------------------
+    # -- drives -------------------------------------------------------------------
 
-    def drive(self) -> list[Reading]:
-        """θj − θi = φ(t) from the coordinate constraint factor1·q1 − q0 =
-        offset(t − t0) on the rotation displacements, i.e. φ(t) = offset +
-        θj_ref − θi_ref when marker 0 measures body_i and marker 1 body_j."""
-        number = int(self.mbs.GetSensor(self.model.drive_sensor)["objectNumber"])
+    def drive(self, drive: Drive) -> list[Reading]:
+        """φ(t) from the coordinate constraint factor1·q1 − q0 = offset(t − t0):
+        on the rotation displacements, θj − θi = offset + θj_ref − θi_ref
+        when marker 0 measures body_i and marker 1 body_j; on a ground
+        coordinate (0) and a relative translation marker along a prismatic
+        joint's axis between its points (the slide itself), s = offset."""
+        item = drive_item(self.mech, drive)
+        number = int(self.mbs.GetSensor(self.model.drive_sensors[drive.name])["objectNumber"])
         self.used.add(number)
         o = self.objects[number]
-        bodies = [self.rotation_of(int(k)) for k in o["markerNumbers"]]
-        pair = [j.name for j in self.mech.joints if [j.body_i, j.body_j] == bodies]
-        joint = pair[0] if pair else f"rotations of {bodies}"
-        readings = [Reading(DRIVE, "joint", joint if o["activeConnector"] else f"{joint} (inactive)",
-                            "ObjectConnectorCoordinate on the two bodies' rotation coordinates")]
-        if not pair or o["velocityLevel"]:
-            return readings + ([Reading(DRIVE, "velocity level", "yes")] if o["velocityLevel"] else [])
+        markers = [int(k) for k in o["markerNumbers"]]
+        bodies = [self.rotation_of(k) for k in markers]
+        if None in bodies:
+            joint, base = self.slide_of(markers), 0.0
+            what = "ObjectConnectorCoordinate on a ground coordinate and the slide along the joint's axis"
+        else:
+            pair = [j.name for j in self.mech.joints if j.kind == "revolute" and [j.body_i, j.body_j] == bodies]
+            joint = pair[0] if pair else None
+            what = "ObjectConnectorCoordinate on the two bodies' rotation coordinates"
+            if joint is not None:
+                j = self.mech.joint(joint)
+                base = self.reference_angle(j.body_j) - self.reference_angle(j.body_i)
+        label = joint if joint is not None else f"coordinates of markers {markers}"
+        readings = [Reading(item, "joint", label if o["activeConnector"] else f"{label} (inactive)", what)]
+        if joint is None or o["velocityLevel"]:
+            return readings + ([Reading(item, "velocity level", "yes")] if o["velocityLevel"] else [])
         offset = o["offsetUserFunction"]["function"] if o["offsetUserFunction"] else (lambda *a: o["offset"])
         rate = o["offsetUserFunction_t"]["function"] if o["offsetUserFunction_t"] else None
         f = lambda tau: float(offset(self.mbs, tau, number, o["offset"]))
         c0, c1, c2 = f(0.0), (f(1.0) - f(-1.0)) / 2, (f(1.0) - 2 * f(0.0) + f(-1.0)) / 2
-        j = self.mech.joint(joint)
-        base = self.reference_angle(j.body_j) - self.reference_angle(j.body_i)
         t0, note = self.t0, "From the drive constraint's offset user function."
-        readings += [Reading(DRIVE, "phi0", c0 - c1 * t0 + c2 * t0 * t0 + base, note),
-                     Reading(DRIVE, "omega0", c1 - 2 * c2 * t0, note),
-                     Reading(DRIVE, "alpha", 2 * c2, note)]
+        readings += [Reading(item, "phi0", c0 - c1 * t0 + c2 * t0 * t0 + base, note),
+                     Reading(item, "omega0", c1 - 2 * c2 * t0, note),
+                     Reading(item, "alpha", 2 * c2, note)]
         size = max(abs(c0), abs(c1), abs(c2), 1.0)
         if abs(f(2.0) - (c0 + 2 * c1 + 4 * c2)) > ROUNDING * 4 * size:
-            readings.append(Reading(DRIVE, "law", "not quadratic in t"))
+            readings.append(Reading(item, "law", "not quadratic in t"))
         if rate is None or abs(float(rate(self.mbs, 0.0, number, o["offset"])) - c1) > ROUNDING * size:
-            readings.append(Reading(DRIVE, "offset rate", "missing or not d/dt of the offset",
+            readings.append(Reading(item, "offset rate", "missing or not d/dt of the offset",
                                     "index-2 uses offsetUserFunction_t (without it the crank is held still)"))
         if o["factor1"] != 1.0:
-            readings.append(Reading(DRIVE, "ratio", float(o["factor1"])))
+            readings.append(Reading(item, "ratio", float(o["factor1"])))
         return readings
+
+    def slide_of(self, markers: list[int]) -> str | None:
+        """The prismatic joint whose slide s the pair (a ground coordinate,
+        then a relative translation marker: q1 − q0 = s) measures: the marker joins the
+        joint's bodies at its points (at the start, within rounding of the
+        mechanism's size) along its unit axis; None if no joint's."""
+        if (len(markers) != 2 or self.rotation_of(markers[0]) != GROUND
+                or self.markers[markers[1]]["markerType"] != "BodiesRelativeTranslationCoordinate"):
+            return None
+        m = self.markers[markers[1]]
+        numbers = [int(b) for b in m["bodyNumbers"]]
+        bodies = [self.object_body.get(b) for b in numbers]
+        axis = np.asarray(m["axis0"], dtype=float)[:2]
+        size = max(1.0, *(abs(v) for j in self.mech.joints for v in j.point_i + j.point_j))
+        for j in self.mech.joints:
+            if j.kind != "prismatic" or bodies != [j.body_i, j.body_j]:
+                continue
+            points = [to_body(self.start, body, self.world(number, m[f"localPosition{k}"]))
+                      for k, (body, number) in enumerate(zip(bodies, numbers))]
+            off = max(float(np.hypot(*(points[0] - j.point_i))), float(np.hypot(*(points[1] - j.point_j))))
+            if off <= ROUNDING * size and float(np.hypot(*(axis - np.asarray(j.axis)))) <= ROUNDING:
+                return j.name
+        return None
+
+    # -- force elements ----------------------------------------------------------
+
+    def force(self, force: SpringDamper | BodyTorque) -> list[Reading]:
+        """The engine element named after the force (`exudyn_model`), read
+        back: a spring-damper's markers, stiffness, free length and damping
+        (any force offset, velocity offset or user function is listed); a
+        torque load's body and vector."""
+        item = force_item(force)
+        if isinstance(force, BodyTorque):
+            found = [i for i, load in enumerate(self.loads) if load["name"] == item]
+            if len(found) != 1:
+                return [Reading(item, "body", f"{len(found)} loads named {item!r}")]
+            self.used_loads.add(found[0])
+            load = self.loads[found[0]]
+            vector = np.asarray(load["loadVector"], dtype=float)
+            marker = self.markers[int(load["markerNumber"])]
+            body = self.object_body.get(int(marker.get("bodyNumber", -1)), f"marker type {marker['markerType']}")
+            readings = [Reading(item, "body", body if load["loadType"] == "TorqueVector" else
+                                f"{body} ({load['loadType']})", "LoadTorqueVector on a MarkerBodyRigid"),
+                        Reading(item, "torque", float(vector[2]), "loadVector z")]
+            if vector[0] or vector[1] or load["loadVectorUserFunction"]:
+                readings.append(Reading(item, "out of plane or user function", f"{vector.tolist()}"))
+            return readings
+        found = [i for i, o in enumerate(self.objects) if o["name"] == item]
+        if len(found) != 1:
+            return [Reading(item, "bodies", f"{len(found)} objects named {item!r}")]
+        self.used.add(found[0])
+        o = self.objects[found[0]]
+        sides = [self.marker_point(int(k)) for k in o["markerNumbers"]]
+        kind = "" if o["objectType"] == "ConnectorSpringDamper" else f" ({o['objectType']})"
+        readings = [Reading(item, "bodies", "–".join(b for b, _ in sides) + kind, "ObjectConnectorSpringDamper")]
+        for end, (body, point) in zip("ab", sides):
+            local = to_body(self.start, body, point) if body in (GROUND, *self.node_body.values()) else point
+            readings += [Reading(item, f"point {end} x", float(local[0])), Reading(item, f"point {end} y", float(local[1]))]
+        readings += [Reading(item, "stiffness", float(o["stiffness"])),
+                     Reading(item, "free length", float(o["referenceLength"]), "referenceLength"),
+                     Reading(item, "damping", float(o["damping"]))]
+        extras = [f"{key} {o[key]:g}" for key in ("force", "velocityOffset") if o[key]]
+        extras += ["spring force user function"] * bool(o["springForceUserFunction"])
+        extras += ["inactive"] * (not o["activeConnector"])
+        if extras:
+            readings.append(Reading(item, "extras", listing(extras)))
+        return readings
+
+    # -- scene ------------------------------------------------------------------
 
     def reference_angle(self, body: str) -> float:
         if body == GROUND:
@@ -286,6 +368,8 @@ class Reader:
         for number, load in enumerate(self.loads):
             marker = self.markers[int(load["markerNumber"])]
             body = self.object_body.get(int(marker["bodyNumber"])) if "bodyNumber" in marker else None
+            if number in self.used_loads:
+                continue
             if load["loadType"] != "MassProportional" or body not in vectors or load["loadVectorUserFunction"]:
                 other.append(f"load {number} ({load['loadType']})")
                 continue

@@ -31,8 +31,9 @@ import exudyn.itemInterface as eii
 import numpy as np
 import pandas as pd
 
+from mechval.audit import force_item
 from mechval.kinematics import point_motion, rotate
-from mechval.mechanism import GROUND, Body, Joint, Mechanism
+from mechval.mechanism import GROUND, Body, BodyTorque, Drive, Joint, Mechanism, SpringDamper
 
 #: The adapter's solver names (setting "solver") → Exudyn's solvers.
 SOLVERS = {"index2": exu.DynamicSolverType.TrapezoidalIndex2, "index3": exu.DynamicSolverType.GeneralizedAlpha}
@@ -52,8 +53,8 @@ class ExudynModel:
     displacement coordinates (of x_G, y_G, θ at the centre of mass) from
     `reference`, and their rates. `joint_sensors[joint]` records a revolute
     joint's `Force` (Fij, world axes) or a prismatic joint's `ForceLocal`
-    (Fji in body_i's frame); `drive_sensor` records λ of the drive
-    constraint.
+    (Fji in body_i's frame); `drive_sensors[drive]` records λ of each
+    drive constraint.
     """
 
     system: exu.SystemContainer
@@ -61,7 +62,14 @@ class ExudynModel:
     reference: dict[str, np.ndarray] = field(default_factory=dict)
     body_sensors: dict[str, dict[str, int]] = field(default_factory=dict)
     joint_sensors: dict[str, int] = field(default_factory=dict)
-    drive_sensor: int = -1
+    #: Per drive (by its name, in `Mechanism.drives` order) the sensor of
+    #: its constraint's λ.
+    drive_sensors: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def drive_sensor(self) -> int:
+        """The first drive's λ sensor (every sensor records every step)."""
+        return next(iter(self.drive_sensors.values()))
 
 
 def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
@@ -95,7 +103,14 @@ def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
         model.joint_sensors[joint.name] = _add_joint(mbs, mechanism, joint, objects, start)
         if joint.damping:
             _add_damper(mbs, mechanism, joint, objects, rotation, ground_coordinate)
-    model.drive_sensor = _add_drive(mbs, mechanism, rotation, model.reference, t0)
+    for drive in mechanism.drives:
+        model.drive_sensors[drive.name] = _add_drive(mbs, mechanism, drive, objects, rotation, ground_coordinate,
+                                                     model.reference, t0)
+    for force in mechanism.forces:
+        if isinstance(force, SpringDamper):
+            _add_spring(mbs, mechanism, force, objects)
+        else:
+            _add_torque(mbs, force, objects)
     mbs.Assemble()
     # Bodies' nodes are the only ones with ODE2 coordinates, in this order.
     mbs.systemData.SetODE2Coordinates_tt(accelerations, configuration=exu.ConfigurationType.Initial)
@@ -167,6 +182,16 @@ def _angle(start: pd.DataFrame, body: str) -> float:
     return 0.0 if body == GROUND else float(start[f"{body}.theta"].iloc[0])
 
 
+def _slide_marker(mbs: exu.MainSystem, mechanism: Mechanism, joint: Joint, objects: dict[str, int]) -> int:
+    """The relative translation of a prismatic joint's points along its
+    axis (a unit vector, fixed in body_i, so it turns with body_i): the
+    slide s."""
+    return mbs.AddMarker(eii.MarkerBodiesRelativeTranslationCoordinate(
+        bodyNumbers=[objects[joint.body_i], objects[joint.body_j]],
+        localPosition0=_local(mechanism, joint.body_i, joint.point_i),
+        localPosition1=_local(mechanism, joint.body_j, joint.point_j), axis0=[*joint.axis, 0.0]))
+
+
 def _add_damper(mbs: exu.MainSystem, mechanism: Mechanism, joint: Joint, objects: dict[str, int],
                 rotation: dict[str, int], ground_coordinate: int) -> None:
     """A zero-stiffness coordinate spring-damper: on the relative rotation
@@ -174,25 +199,32 @@ def _add_damper(mbs: exu.MainSystem, mechanism: Mechanism, joint: Joint, objects
     if joint.kind == "revolute":
         markers = [rotation[joint.body_i], rotation[joint.body_j]]
     else:
-        slide = mbs.AddMarker(eii.MarkerBodiesRelativeTranslationCoordinate(
-            bodyNumbers=[objects[joint.body_i], objects[joint.body_j]],
-            localPosition0=_local(mechanism, joint.body_i, joint.point_i),
-            localPosition1=_local(mechanism, joint.body_j, joint.point_j), axis0=[*joint.axis, 0.0]))
-        markers = [ground_coordinate, slide]
+        markers = [ground_coordinate, _slide_marker(mbs, mechanism, joint, objects)]
     mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(markerNumbers=markers, stiffness=0.0,
                                                             damping=joint.damping))
 
 
-def _add_drive(mbs: exu.MainSystem, mechanism: Mechanism, rotation: dict[str, int],
-               reference: dict[str, np.ndarray], t0: float) -> int:
-    """θj − θi = φ(t) as a constraint on the rotation displacements:
-    q_j − q_i = φ(t) − (θj_ref − θi_ref), with t = t0 + the solver's time
-    (Exudyn refuses a negative start time, so its clock starts at 0 at t0).
-    Returns the sensor of its λ."""
-    joint = mechanism.joint(mechanism.drive.joint)
-    law = mechanism.drive.law
-    theta_ref = {body: float(q0[2]) for body, q0 in reference.items()} | {GROUND: 0.0}
-    base = theta_ref[joint.body_j] - theta_ref[joint.body_i]
+def _add_drive(mbs: exu.MainSystem, mechanism: Mechanism, drive: Drive, objects: dict[str, int],
+               rotation: dict[str, int], ground_coordinate: int, reference: dict[str, np.ndarray],
+               t0: float) -> int:
+    """The drive's law as a coordinate constraint q1 − q0 = offset(t), t =
+    t0 + the solver's time (Exudyn refuses a negative start time, so its
+    clock starts at 0 at t0). Returns the sensor of its λ.
+
+    Revolute: on the rotation displacements, θj − θi = φ(t), i.e. q_j − q_i
+    = φ(t) − (θj_ref − θi_ref). Prismatic: the slide marker's coordinate is
+    the current s itself (not a displacement), constrained against a
+    ground coordinate (0): s = φ(t).
+    """
+    joint = mechanism.joint(drive.joint)
+    law = drive.law
+    if joint.kind == "revolute":
+        theta_ref = {body: float(q0[2]) for body, q0 in reference.items()} | {GROUND: 0.0}
+        base = theta_ref[joint.body_j] - theta_ref[joint.body_i]
+        markers = [rotation[joint.body_i], rotation[joint.body_j]]
+    else:
+        base = 0.0
+        markers = [ground_coordinate, _slide_marker(mbs, mechanism, joint, objects)]
 
     # DriveLaw's φ and φ̇ in plain floats: these run at every Newton
     # iteration, where numpy's per-call cost on scalars would take a large
@@ -208,10 +240,30 @@ def _add_drive(mbs: exu.MainSystem, mechanism: Mechanism, rotation: dict[str, in
         return omega0 + alpha * (t + t0)
 
     number = mbs.AddObject(eii.ObjectConnectorCoordinate(
-        markerNumbers=[rotation[joint.body_i], rotation[joint.body_j]],
-        offsetUserFunction=offset, offsetUserFunction_t=offset_t))
+        markerNumbers=markers, offsetUserFunction=offset, offsetUserFunction_t=offset_t))
     return mbs.AddSensor(eii.SensorObject(objectNumber=number, outputVariableType=exu.OutputVariableType.Force,
                                           storeInternal=True, writeToFile=False))
+
+
+def _add_spring(mbs: exu.MainSystem, mechanism: Mechanism, spring: SpringDamper, objects: dict[str, int]) -> None:
+    """An `ObjectConnectorSpringDamper` between the two points: tension
+    stiffness·(ℓ − referenceLength) + damping·ℓ̇ along the line (its force
+    offset and velocity offset stay 0). Named after the force, so that the
+    audit finds it."""
+    markers = [mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=objects[body],
+                                                    localPosition=_local(mechanism, body, point)))
+               for body, point in ((spring.body_a, spring.point_a), (spring.body_b, spring.point_b))]
+    mbs.AddObject(eii.ObjectConnectorSpringDamper(
+        name=force_item(spring), markerNumbers=markers, stiffness=spring.stiffness, damping=spring.damping,
+        referenceLength=spring.free_length))
+
+
+def _add_torque(mbs: exu.MainSystem, torque: BodyTorque, objects: dict[str, int]) -> None:
+    """A constant `LoadTorqueVector` about z on the body (named after the
+    force, for the audit)."""
+    marker = mbs.AddMarker(eii.MarkerBodyRigid(bodyNumber=objects[torque.body], localPosition=[0.0, 0.0, 0.0]))
+    mbs.AddLoad(eii.LoadTorqueVector(name=force_item(torque), markerNumber=marker,
+                                     loadVector=[0.0, 0.0, float(torque.torque)]))
 
 
 def simulation_settings(settings: Mapping[str, Any], duration: float, dt: float) -> exu.SimulationSettings:

@@ -35,9 +35,9 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (DRIVE, SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item,
-                           expected_model, force_item, inertia_readings, joint_item, listing, point_quantity,
-                           point_readings, to_body)
+from mechval.audit import (SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item,
+                           expected_model, force_item, inertia_readings, joint_item, listing, point_readings,
+                           to_body)
 from mechval.kinematics import slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism
 
@@ -226,7 +226,7 @@ class Reader:
                "(POSITION_CONTROL, gains 1/1, force cap 1e12).")
         rows = []
         for k, motor in enumerate(self.stepper.motors):
-            item = DRIVE if k == 0 else drive_item(motor.drive.name)
+            item = drive_item(self.mech, motor.drive)
             rows += [Reading(item, "joint", motor.joint.joint.name,
                              "The joint whose motor the stepping loop drives.", "set"),
                      *(Reading(item, q, "stepping loop", law, "note") for q in ("phi0", "omega0", "alpha"))]
@@ -239,17 +239,17 @@ class Reader:
         applied = "Not in the model: applied every step by the stepping loop as external loads"
         rows = []
         for spring in self.stepper.springs:
-            item = force_item(spring.name)
+            item = force_item(spring)
             rows.append(Reading(item, "bodies", f"{spring.body_a}–{spring.body_b}", applied, "set"))
-            for body, point in ((spring.body_a, spring.point_a), (spring.body_b, spring.point_b)):
-                rows += [Reading(item, point_quantity(body, axis), value, applied, "set")
+            for end, point in (("a", spring.point_a), ("b", spring.point_b)):
+                rows += [Reading(item, f"point {end} {axis}", value, applied, "set")
                          for axis, value in zip("xy", point)]
             rows += [Reading(item, "stiffness", spring.stiffness, applied, "set"),
                      Reading(item, "free length", spring.free_length, applied, "set"),
                      Reading(item, "damping", spring.damping,
                              f"{applied}; the rate of length is extrapolated to the step's start", "set")]
         for torque in self.stepper.torques:
-            item = force_item(torque.name)
+            item = force_item(torque)
             rows += [Reading(item, "body", torque.body, applied, "set"),
                      Reading(item, "torque", torque.torque, applied, "set")]
         return rows

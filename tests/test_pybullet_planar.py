@@ -17,7 +17,7 @@ import tomllib
 import pytest
 
 from conftest import engine_or_skip
-from mechval.audit import failures, format_audit
+from mechval.audit import failures, force_item, format_audit
 from mechval.compare import compare
 from mechval.linkages import build_mechanism
 from mechval.scenarios import parse
@@ -356,5 +356,5 @@ def test_the_model_holds_only_the_scene(adapter, name):
     table = adapter.audit(mechanism, scenario.time.t, adapter.settings_for(scenario, mechanism))
     assert failures(table).empty, "\n" + format_audit(failures(table))
     audited = set(table["item"])
-    assert {f"force {f.name}" for f in mechanism.forces} <= audited
+    assert {force_item(f) for f in mechanism.forces} <= audited
     assert {f"drive {d.name}" for d in mechanism.extra_drives} <= audited

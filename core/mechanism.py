@@ -104,6 +104,25 @@ class Drive:
 
 
 @dataclass(frozen=True)
+class TorqueLaw:
+    """An applied torque at a revolute joint, T(t) = torque + amplitude·
+    sin(2π·frequency·t + phase) (N·m, N·m, Hz, rad): T on body_j and −T on
+    body_i, about +z. Unlike a `Drive` it prescribes no motion (forward
+    dynamics, `mechval.dynamics`); its value is the raw column "NAME.T"."""
+
+    joint: str
+    torque: float = 0.0
+    amplitude: float = 0.0
+    frequency: float = 0.0
+    phase: float = 0.0
+    name: str = "drive"
+
+    def value(self, t: np.ndarray | float) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        return self.torque + self.amplitude * np.sin(2 * np.pi * self.frequency * t + self.phase)
+
+
+@dataclass(frozen=True)
 class SpringDamper:
     """A linear spring-damper between point_a of body_a and point_b of
     body_b (body frames; world for the ground): tension
@@ -147,7 +166,8 @@ class Mechanism:
     kind: str
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
-    drive: Drive
+    #: None: no prescribed drive (torque-driven or free; `mechval.dynamics`).
+    drive: Drive | None
     gravity: Vec2
     #: Reference motion of every body frame at the given instants, as raw
     #: motion columns ("crank.theta", ...). Adapters use it to start from a
@@ -166,6 +186,8 @@ class Mechanism:
     forces: tuple[SpringDamper | BodyTorque, ...] = ()
     #: Approximate pose per body at t = 0 (picks the assembly branch).
     assembly_pose: Mapping[str, BodyPose] = field(default_factory=dict, repr=False, compare=False)
+    #: Applied joint torques (motor laws) that prescribe no motion.
+    torque_drives: tuple[TorqueLaw, ...] = ()
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -175,7 +197,7 @@ class Mechanism:
 
     @property
     def drives(self) -> tuple[Drive, ...]:
-        return (self.drive, *self.extra_drives)
+        return tuple(d for d in (self.drive, *self.extra_drives) if d is not None)
 
     @property
     def has_gravity(self) -> bool:
@@ -194,7 +216,8 @@ class Mechanism:
             columns += [f"{j.name}.Fx", f"{j.name}.Fy"]
             if j.kind == "prismatic":
                 columns.append(f"{j.name}.M")
-        return columns + [d.effort_column(self.joint(d.joint).kind) for d in self.drives]
+        return (columns + [d.effort_column(self.joint(d.joint).kind) for d in self.drives]
+                + [f"{law.name}.T" for law in self.torque_drives])
 
 
 def rotate(theta: np.ndarray, v: Vec2) -> tuple[np.ndarray, np.ndarray]:

@@ -128,7 +128,7 @@ class ForwardDynamics:
     def _restart(self) -> None:
         """Warm-start the next evaluation's Newton from the initial state."""
         self.evaluations = 0
-        self._last = (self.start.z, self.start.q[None], np.zeros((1, self.solver.c.n, self.k)))
+        self._last = (self.start.t0, self.start.z, self.start.q[None], np.zeros((1, self.solver.c.n, self.k)))
 
     # -- the state at instants (batched) --------------------------------------------------------
 
@@ -197,11 +197,11 @@ class ForwardDynamics:
         """q, q̇, q̈, z̈ at one instant, Newton starting from the previous
         evaluation's q moved by B·Δz (B = ∂q/∂z there)."""
         z, zdot = y[:self.k], y[self.k:]
-        z_last, q_last, B_last = self._last
+        _, z_last, q_last, B_last = self._last
         tt = np.array([t])
         q, f, factor = self._positions(q_last + B_last @ (z - z_last), tt, z[None], self._dense)
         v, a, zddot, _, B = self._rates(q, tt, zdot[None], f, factor)
-        self._last = (z, q, B)
+        self._last = (t, z, q, B)
         self.evaluations += 1
         return q[0], v[0], a[0], zddot[0]
 
@@ -221,6 +221,17 @@ class ForwardDynamics:
         omega = max(float(np.max(np.abs(start.zdot) / unit, initial=0.0)),
                     float(np.sqrt(np.max(np.abs(rate) / unit, initial=0.0))), 1.0 / span)
         return rtol * np.concatenate([unit, unit * omega])
+
+    def _stopped(self, failure: str) -> MechanismError:
+        """The refusal of a run that stopped, with the Jacobian's condition
+        at the last state reached: where it grows without bound the stated
+        joints' coordinates cannot parametrise the motion."""
+        t, _, q, _ = self._last
+        condition = float(self.solver._factor(q, self.solver.c.frames(q), np.array([t])).condition()[0])
+        return MechanismError("time", f"the integration stops after t = {t:.6g} s ({failure}); the Jacobian's "
+                                      f"condition there is {condition:.3g}: where it grows without bound, the "
+                                      f"coordinates of {', '.join(self.joints)} cannot parametrise the motion (a "
+                                      "toggle of those joints): state the initial values at other joints")
 
     def _nodes(self, ts: np.ndarray, ys: np.ndarray) -> Nodes:
         """q, q̇, q̈ at the accepted steps (each Newton-solved from the last,
@@ -244,9 +255,14 @@ class ForwardDynamics:
         if t_end > start.t0:
             atol = self.tolerances(rtol, t_end - start.t0)
             self._restart()
-            sol = solve_ivp(self.rhs, (start.t0, t_end), y0, method=method, rtol=rtol, atol=atol, dense_output=True)
-            if sol.status != 0:
-                raise MechanismError("time", f"the integrator stopped at t = {sol.t[-1]:.6g} s: {sol.message}")
+            try:
+                sol = solve_ivp(self.rhs, (start.t0, t_end), y0, method=method, rtol=rtol, atol=atol,
+                                dense_output=True)
+                failure = "" if sol.status == 0 else f"the integrator stopped: {sol.message}"
+            except MechanismError as error:
+                failure = error.reason
+            if failure:
+                raise self._stopped(failure)
             steps, evaluations, interpolate = len(sol.t) - 1, self.evaluations, sol.sol
             nodes = self._nodes(sol.t, sol.y)
         else:

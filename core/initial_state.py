@@ -40,9 +40,13 @@ from .planar_positions import Scaling, Structure, gauss_newton, initial_guess, m
 from .planar_tree import Factor, Tree
 
 #: Condition number of the scaled reduced Jacobian above which the stated
-#: coordinates are refused as unable to parametrise the motion (as the
-#: prescribed reference refuses a singular instant).
-SINGULAR_CONDITION = 1e10
+#: coordinates are refused as unable to parametrise the motion: the state's
+#: dependent positions and rates would carry errors of ~cond·eps (2e-9 at
+#: 1e7, the order of the Andrews bound of issue 15). At a joint's toggle
+#: itself the assembly ends ~√eps from it and the condition is ~1e8 (the
+#: seed four-bar's rocker at its extreme: 3e8; 1e-14 rad inside: 3.8e7;
+#: 1e-12 rad inside: 3.8e6).
+SINGULAR_CONDITION = 1e7
 
 
 @dataclass(frozen=True)

@@ -15,11 +15,11 @@ from scipy.special import ellipj, ellipk
 
 import andrews as A
 import planar_mechanisms as pm
-from conftest import builtin_scenario
 from mechval.initial_state import InitialValue
 from mechval.linkages import build_mechanism
 from mechval.mechanism import (GROUND, BodyPose, BodyTorque, Joint, Mechanism, SpringDamper, TorqueLaw)
 from mechval.planar_solver import default_pose
+from mechval.scenarios import load
 
 
 @dataclass(frozen=True)
@@ -103,7 +103,7 @@ def free_fourbar() -> Case:
     """The seed four-bar (a crank-rocker) with its drive removed, released
     from rest at its t = 0 pose under gravity: undamped, so its energy is
     constant."""
-    mech = build_mechanism(builtin_scenario("fourbar-seed"))
+    mech = build_mechanism(load("fourbar-seed"))
     pose = default_pose(mech, 0.0)
     return Case(dataclasses.replace(mech, drive=None), (InitialValue("O2", float(pose["crank"].theta), 0.0),), pose)
 

@@ -45,12 +45,12 @@ import pandas as pd
 from scipy.integrate import solve_ivp
 from scipy.linalg import lu_factor, lu_solve, qr, solve_triangular
 
-from .mechanism import BodyPose, Mechanism
-from .initial_state import InitialValue, consistent_state, coordinate_name, with_coordinates
+from .initial_state import SINGULAR_CONDITION, consistent_state, coordinate_name, with_coordinates
+from .mechanism import BodyPose, InitialValue, Mechanism
 from .planar_constraints import MechanismError
 from .planar_linear import settled
 from .planar_positions import Nodes, Structure
-from .planar_solver import CHUNK, SINGULAR_CONDITION, UNIQUE_TOL, PlanarSolver, default_pose
+from .planar_solver import CHUNK, UNIQUE_TOL, PlanarSolver, default_pose
 
 #: The integrator's relative tolerance by default (issue 15: 1e-10).
 RTOL = 1e-10
@@ -108,12 +108,13 @@ class DenseFactor:
 
 
 class ForwardDynamics:
-    """Integrate one mechanism from its stated initial values (see the
-    module docstring)."""
+    """Integrate one mechanism from its stated initial values (the
+    mechanism's own unless given; see the module docstring)."""
 
-    def __init__(self, mech: Mechanism, initial: Sequence[InitialValue],
+    def __init__(self, mech: Mechanism, initial: Sequence[InitialValue] | None = None,
                  pose: Mapping[str, BodyPose] | None = None, t0: float = 0.0):
         check_torque_laws(mech)
+        initial = mech.initial_values if initial is None else tuple(initial)
         self.mech = mech
         self.start = consistent_state(mech, initial, pose or default_pose(mech, t0), t0)
         self.joints = tuple(v.joint for v in initial)
@@ -238,7 +239,20 @@ class ForwardDynamics:
         from the initial state on: the branch and the turns the run took)."""
         self._restart()
         states = [self._state(t, y)[:3] for t, y in zip(ts, ys.T)]
-        return Nodes(ts, *(np.array(x) for x in zip(*states)))
+        nodes = Nodes(ts, *(np.array(x) for x in zip(*states)))
+        self._check_partition(ts, self.solver._factor(nodes.q, self.solver.c.frames(nodes.q), ts).condition())
+        return nodes
+
+    def _check_partition(self, t: np.ndarray, condition: np.ndarray) -> None:
+        """Refuse a run that passes where the stated joints' coordinates
+        cannot parametrise the motion (as `mechval.initial_state` refuses
+        such a start: the same bound on the Jacobian's condition)."""
+        if condition.max() > SINGULAR_CONDITION:
+            k = int(np.argmax(condition > SINGULAR_CONDITION))
+            raise MechanismError("time", f"at t = {t[k]:.6g} s the coordinates of {', '.join(self.joints)} cannot "
+                                         f"parametrise the motion (Jacobian condition {condition[k]:.3g} > "
+                                         f"{SINGULAR_CONDITION:.0e}: a toggle of those joints): state the initial "
+                                         "values at other joints")
 
     def solve(self, t: np.ndarray, rtol: float = RTOL, method: str = "DOP853") -> DynamicSolution:
         """Raw motion and reaction columns at instants t (nondecreasing,
@@ -307,11 +321,7 @@ class ForwardDynamics:
             condition[part], drift[part] = out["condition"], out["drift"]
             undetermined |= out["undetermined"]
             table[1:, part] = solver._columns(out)
-        if condition.max() > SINGULAR_CONDITION:
-            k = int(np.argmax(condition > SINGULAR_CONDITION))
-            raise MechanismError("time", f"at t = {t[k]:.6g} s the joints {', '.join(self.joints)} cannot "
-                                         f"parametrise the motion (Jacobian condition {condition[k]:.3g} > "
-                                         f"{SINGULAR_CONDITION:.0e}): state the initial value at another joint")
+        self._check_partition(t, condition)
         undetermined[self.rows] = False
         missing = solver._missing(undetermined, table, augmented, self.start.structure)
         columns = {name: table[k] for k, name in enumerate(augmented)}
@@ -323,10 +333,10 @@ class ForwardDynamics:
         return frame, {k: v for k, v in missing.items() if k in names}, measured
 
 
-def raw_dynamics(mech: Mechanism, t: np.ndarray, initial: Sequence[InitialValue],
+def raw_dynamics(mech: Mechanism, t: np.ndarray, initial: Sequence[InitialValue] | None = None,
                  pose: Mapping[str, BodyPose] | None = None, rtol: float = RTOL,
                  method: str = "DOP853") -> DynamicSolution:
     """The forward-dynamics reference's raw columns of `mech` at instants t,
-    from the stated initial values at t[0]."""
+    from the stated initial values (the mechanism's own unless given) at t[0]."""
     t = np.asarray(t, dtype=float)
     return ForwardDynamics(mech, initial, pose, float(t[0]) if t.size else 0.0).solve(t, rtol, method)

@@ -33,7 +33,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .drive import DriveLaw
-from .mechanism import BodyPose, Drive, Mechanism
+from .mechanism import BodyPose, Drive, InitialValue, Mechanism
 from .planar_constraints import Constraints, MechanismError
 from .planar_linear import solve_one
 from .planar_positions import Scaling, Structure, gauss_newton, initial_guess, mechanism_size, rank
@@ -47,16 +47,6 @@ from .planar_tree import Factor, Tree
 #: seed four-bar's rocker at its extreme: 3e8; 1e-14 rad inside: 3.8e7;
 #: 1e-12 rad inside: 3.8e6).
 SINGULAR_CONDITION = 1e7
-
-
-@dataclass(frozen=True)
-class InitialValue:
-    """A joint's coordinate at the start and its rate: relative angle (rad)
-    and rad/s for a revolute joint, slide (m) and m/s for a prismatic one."""
-
-    joint: str
-    value: float
-    rate: float = 0.0
 
 
 def coordinate_name(joint: str) -> str:

@@ -21,7 +21,10 @@ closed-form kinds leave at their defaults: further drives (a revolute drive
 prescribes the relative angle θj − θi, a prismatic drive the slide s along
 the axis, both by a `DriveLaw`; a prismatic drive's effort is a force `F`
 along the axis on body_j), force elements (`SpringDamper`, `BodyTorque`)
-and an approximate assembly pose that picks the branch.
+and an approximate assembly pose that picks the branch. The
+forward-dynamics reference (`mechval.dynamics`) reads torque-driven and
+free mechanisms: no prescribed `drive` (None) or fewer drives than the
+mobility, applied `TorqueLaw`s, and the `InitialValue`s a run starts from.
 
 Raw columns (`motion_columns`, `reaction_columns`) name what adapters and
 the reference report: "crank.theta", "A.Fx", "drive.T", ...
@@ -123,6 +126,17 @@ class TorqueLaw:
 
 
 @dataclass(frozen=True)
+class InitialValue:
+    """A joint's coordinate at the start of a torque-driven or free run and
+    its rate: relative angle θj − θi (rad, rad/s) of a revolute joint, or
+    slide (m, m/s) of a prismatic one (`mechval.initial_state`)."""
+
+    joint: str
+    value: float
+    rate: float = 0.0
+
+
+@dataclass(frozen=True)
 class SpringDamper:
     """A linear spring-damper between point_a of body_a and point_b of
     body_b (body frames; world for the ground): tension
@@ -188,6 +202,9 @@ class Mechanism:
     assembly_pose: Mapping[str, BodyPose] = field(default_factory=dict, repr=False, compare=False)
     #: Applied joint torques (motor laws) that prescribe no motion.
     torque_drives: tuple[TorqueLaw, ...] = ()
+    #: Where a torque-driven or free run starts: one joint value per degree
+    #: of freedom the drives leave.
+    initial_values: tuple[InitialValue, ...] = ()
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)

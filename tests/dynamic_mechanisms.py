@@ -15,20 +15,26 @@ from scipy.special import ellipj, ellipk
 
 import andrews as A
 import planar_mechanisms as pm
-from mechval.initial_state import InitialValue
 from mechval.linkages import build_mechanism
-from mechval.mechanism import (GROUND, BodyPose, BodyTorque, Joint, Mechanism, SpringDamper, TorqueLaw)
+from mechval.mechanism import GROUND, BodyPose, BodyTorque, InitialValue, Joint, Mechanism, SpringDamper, TorqueLaw
 from mechval.planar_solver import default_pose
 from mechval.scenarios import load
 
 
 @dataclass(frozen=True)
 class Case:
-    """A mechanism, its initial values at t = 0 and an assembly pose."""
+    """A mechanism (with its initial values at t = 0) and an assembly pose."""
 
     mech: Mechanism
-    initial: tuple[InitialValue, ...]
     pose: dict[str, BodyPose]
+
+    @property
+    def initial(self) -> tuple[InitialValue, ...]:
+        return self.mech.initial_values
+
+
+def case(mech: Mechanism, initial: tuple[InitialValue, ...], pose) -> Case:
+    return Case(dataclasses.replace(mech, initial_values=initial), dict(pose))
 
 
 def _no_closed_form(t):
@@ -50,7 +56,7 @@ def pendulum() -> Case:
                      joints=(Joint("O", "revolute", GROUND, "bar", (0.0, 0.0), (0.0, 0.0)),),
                      drive=None, gravity=(0.0, -p["g"]), motion=_no_closed_form, signal_map={},
                      assembly_pose={"bar": BodyPose(round(theta0, 1))})
-    return Case(mech, (InitialValue("O", theta0, 0.0),), dict(mech.assembly_pose))
+    return case(mech, (InitialValue("O", theta0, 0.0),), dict(mech.assembly_pose))
 
 
 def pendulum_exact(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -80,7 +86,7 @@ def spinning_crank() -> Case:
                      drive=None, gravity=(0.0, 0.0), motion=_no_closed_form, signal_map={},
                      torque_drives=(TorqueLaw("O", s["torque"], s["amplitude"], s["frequency"], s["phase"]),),
                      assembly_pose={"crank": BodyPose(0.0)})
-    return Case(mech, (InitialValue("O", s["theta0"], s["rate0"]),), dict(mech.assembly_pose))
+    return case(mech, (InitialValue("O", s["theta0"], s["rate0"]),), dict(mech.assembly_pose))
 
 
 def spinning_exact(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -105,7 +111,7 @@ def free_fourbar() -> Case:
     constant."""
     mech = build_mechanism(load("fourbar-seed"))
     pose = default_pose(mech, 0.0)
-    return Case(dataclasses.replace(mech, drive=None), (InitialValue("O2", float(pose["crank"].theta), 0.0),), pose)
+    return case(dataclasses.replace(mech, drive=None), (InitialValue("O2", float(pose["crank"].theta), 0.0),), pose)
 
 
 def motored_slider_crank() -> Case:
@@ -124,7 +130,7 @@ def motored_slider_crank() -> Case:
         forces=(SpringDamper("return", "slider", (0.0, 0.0), GROUND, (0.6, 0.0), 150.0, 0.25, 1.5),
                 BodyTorque("twist", "conrod", 0.1)))
     crank = base.assembly_pose["crank"].theta
-    return Case(mech, (InitialValue("O2", crank, 3.0),), dict(base.assembly_pose))
+    return case(mech, (InitialValue("O2", crank, 3.0),), dict(base.assembly_pose))
 
 
 def free_five_bar() -> Case:
@@ -133,7 +139,17 @@ def free_five_bar() -> Case:
     base = pm.five_bar()
     mech = dataclasses.replace(base, drive=None, extra_drives=())
     initial = tuple(InitialValue(d.joint, d.law.phi0, d.law.omega0) for d in base.drives)
-    return Case(mech, initial, dict(base.assembly_pose))
+    return case(mech, initial, dict(base.assembly_pose))
+
+
+def half_driven_five_bar() -> Case:
+    """tests/planar_mechanisms.py's five-bar with its first crank still
+    prescribed (φ1 = 0.5 + 2t) and the second free, started at its drive's
+    t = 0 angle and rate: a rheonomic constraint in the forward dynamics."""
+    base = pm.five_bar()
+    second = base.extra_drives[0]
+    mech = dataclasses.replace(base, extra_drives=())
+    return case(mech, (InitialValue(second.joint, second.law.phi0, second.law.omega0),), dict(base.assembly_pose))
 
 
 def free_parallelogram() -> Case:
@@ -142,18 +158,19 @@ def free_parallelogram() -> Case:
     of its change points at 0 and −π."""
     base = pm.parallelogram()
     pose = {name: BodyPose(-0.5 if name != "coupler" else 0.0) for name in base.assembly_pose}
-    return Case(dataclasses.replace(base, drive=None, assembly_pose=pose), (InitialValue("O1", -0.5, 0.0),), pose)
+    return case(dataclasses.replace(base, drive=None, assembly_pose=pose), (InitialValue("O1", -0.5, 0.0),), pose)
 
 
 def motored_andrews() -> Case:
     """Andrews' squeezer under its motor torque mom at O and its spring,
     from the Test Set's consistent initial state (tests/andrews.py)."""
     mech = dataclasses.replace(A.andrews_mechanism(), drive=None, torque_drives=(TorqueLaw("O", A.mom),))
-    return Case(mech, (InitialValue("O", float(A.Q0[0]), float(A.QDOT0[0])),), A.pose_near(A.Q0))
+    return case(mech, (InitialValue("O", float(A.Q0[0]), float(A.QDOT0[0])),), A.pose_near(A.Q0))
 
 
 CASES: dict[str, Callable[[], Case]] = {
     "pendulum": pendulum, "spinning-crank": spinning_crank, "free-fourbar": free_fourbar,
     "motored-slider-crank": motored_slider_crank, "free-five-bar": free_five_bar,
+    "half-driven-five-bar": half_driven_five_bar,
     "free-parallelogram": free_parallelogram, "motored-andrews": motored_andrews,
 }

@@ -31,13 +31,16 @@ from scipy.interpolate import CubicHermiteSpline
 
 import andrews as A
 import dynamic_mechanisms as dm
+from mechval.adapter import Unrepresentable, mechanism_features
 from mechval.dynamics import RTOL, ForwardDynamics, raw_dynamics
 from mechval.energy import applied_power, kinetic_energy, potential_energy
 from mechval.health import joint_gaps
-from mechval.initial_state import InitialValue
-from mechval.mechanism import GROUND, Body, BodyPose, Drive, Joint, TorqueLaw
+from mechval.linkages import build_mechanism
+from mechval.mechanism import GROUND, Body, BodyPose, Drive, InitialValue, Joint, TorqueLaw
 from mechval.planar_constraints import MechanismError
 from mechval.planar_solver import raw_planar
+from mechval.reference import ReferenceAdapter
+from mechval.scenarios import load
 from scales import size
 
 ACCURACY = 100 * RTOL
@@ -55,7 +58,7 @@ ANDREWS_DEPENDENT_RATES = 1e-7
 PRESCRIBED = 1e-12
 #: Seconds each case runs (Andrews: the Test Set's interval).
 SPANS = {"pendulum": 2.0, "spinning-crank": 2.0, "free-fourbar": 2.0, "motored-slider-crank": 1.0,
-         "free-five-bar": 1.0, "free-parallelogram": 2.0, "motored-andrews": A.T1}
+         "free-five-bar": 1.0, "half-driven-five-bar": 1.0, "free-parallelogram": 2.0, "motored-andrews": A.T1}
 #: Quadrature panels over each run (see gauss_instants).
 PANELS = 50
 
@@ -289,7 +292,7 @@ def test_refuses_a_run_whose_coordinate_reaches_its_toggle():
     angle cannot parametrise the motion."""
     case = dm.free_fourbar()
     start = ForwardDynamics(case.mech, case.initial, case.pose).start
-    rocker = dataclasses.replace(case, initial=(InitialValue("O4", float(start.q[8])),))
+    rocker = dm.case(case.mech, (InitialValue("O4", float(start.q[8])),), case.pose)
     with pytest.raises(MechanismError) as caught:
         run_case(rocker, np.linspace(0.0, 1.0, 11))
     assert caught.value.key == "time" and "cannot parametrise the motion" in caught.value.reason
@@ -331,3 +334,48 @@ def test_refuses_bad_torque_laws(law, reason):
     case = dm.motored_slider_crank()
     error = refusal(case, mech=dataclasses.replace(case.mech, torque_drives=(law,)))
     assert error.key == f"torque.{law.name}" and reason in error.reason
+
+
+# -- as the reference adapter -------------------------------------------------------------------
+
+def test_the_reference_adapter_integrates_torque_driven_and_free_mechanisms():
+    """ReferenceAdapter runs a mechanism without a prescribed drive (or with
+    torque laws) by forward dynamics from its own initial values, and its
+    RunInfo states the integrator and tolerance."""
+    t = np.linspace(0.0, 0.5, 11)
+    for case in (dm.spinning_crank(), dm.half_driven_five_bar()):
+        run_ = ReferenceAdapter().run(case.mech, t, {})
+        direct = raw_dynamics(case.mech, t)
+        assert run_.frame.equals(direct.frame)
+        assert run_.info.facts["rtol"] == RTOL and run_.info.facts["integrator"].endswith("DOP853")
+
+
+def test_the_reference_adapter_refuses_a_bad_initial_state_as_unrepresentable():
+    case = dm.free_fourbar()
+    mech = dataclasses.replace(case.mech, initial_values=())
+    with pytest.raises(Unrepresentable) as caught:
+        ReferenceAdapter().run(mech, np.linspace(0.0, 1.0, 5), {})
+    assert caught.value.key == "initial" and "too few initial values" in caught.value.reason
+
+
+def test_torque_laws_and_free_motion_are_features_engines_must_declare():
+    """Engines that do not list them are refused before they run
+    (mechval.adapter.mechanism_features)."""
+    assert mechanism_features(dm.free_fourbar().mech) == {"free motion": "initial"}
+    assert mechanism_features(dm.spinning_crank().mech) == {"torque laws": "torque.drive", "free motion": "initial"}
+    assert mechanism_features(dm.half_driven_five_bar().mech)["free motion"] == "initial"
+    assert mechanism_features(build_mechanism(load("fourbar-seed"))) == {}
+
+
+def test_redundant_reactions_are_missing_with_the_reason_as_in_the_prescribed_reference():
+    """The free parallelogram: its kinematics and energy are checked above;
+    the reactions its redundant constraint leaves indeterminate are NaN
+    with the reason, the same columns the prescribed reference leaves out."""
+    case, solution = solved("free-parallelogram")
+    prescribed = raw_planar(dataclasses.replace(case.mech, drive=Drive("O1", TableLaw([0, 1], [-0.5, -0.4],
+                                                                                     [0.1, 0.1], [0, 0]))),
+                            np.array([0.0, 0.5]), case.pose)
+    assert sorted(solution.missing) == sorted(prescribed.missing)
+    for column, reason in solution.missing.items():
+        assert solution.frame[column].isna().all() and "not unique" in reason
+    assert not solution.frame.drop(columns=list(solution.missing)).isna().any().any()

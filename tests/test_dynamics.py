@@ -41,7 +41,7 @@ from mechval.planar_constraints import MechanismError
 from mechval.planar_solver import raw_planar
 from mechval.reference import ReferenceAdapter
 from mechval.scenarios import load
-from scales import size
+from mechval.planar_positions import mechanism_size as size  # L: joint, centre-of-mass and force points
 
 ACCURACY = 100 * RTOL
 #: Constraint drift at every output, as a fraction of the mechanism's size (issue 15).

@@ -26,7 +26,7 @@ import dynamic_mechanisms as dm  # noqa: E402
 from mechval.dynamics import METHODS, RTOL, raw_dynamics  # noqa: E402
 from mechval.energy import kinetic_energy, potential_energy  # noqa: E402
 from mechval.health import joint_gaps  # noqa: E402
-from scales import size  # noqa: E402
+from mechval.planar_positions import mechanism_size as size  # noqa: E402
 
 NAMES = ("β", "Θ", "γ", "Φ", "δ", "Ω", "ε")
 

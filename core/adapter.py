@@ -84,7 +84,7 @@ class Unrepresentable(ValueError):
 #: What a planar file may ask for beyond one revolute drive, gravity and
 #: joint dampers (`mechanism_features`); an adapter lists in `features`
 #: those it builds, and is refused the others before it runs.
-FEATURES = ("several drives", "a prismatic drive", "spring-dampers", "body torques")
+FEATURES = ("several drives", "a prismatic drive", "spring-dampers", "body torques", "torque laws", "free motion")
 
 
 def mechanism_features(mechanism: Mechanism) -> dict[str, str]:
@@ -98,6 +98,10 @@ def mechanism_features(mechanism: Mechanism) -> dict[str, str]:
             used.setdefault("a prismatic drive", "drive")
     for force in mechanism.forces:
         used.setdefault("body torques" if hasattr(force, "torque") else "spring-dampers", f"force.{force.name}")
+    for law in mechanism.torque_drives:
+        used.setdefault("torque laws", f"torque.{law.name}")
+    if mechanism.drive is None or mechanism.initial_values:     # degrees of freedom no drive prescribes
+        used["free motion"] = "initial"
     return used
 
 

@@ -21,7 +21,10 @@ closed-form kinds leave at their defaults: further drives (a revolute drive
 prescribes the relative angle θj − θi, a prismatic drive the slide s along
 the axis, both by a `DriveLaw`; a prismatic drive's effort is a force `F`
 along the axis on body_j), force elements (`SpringDamper`, `BodyTorque`)
-and an approximate assembly pose that picks the branch.
+and an approximate assembly pose that picks the branch. The
+forward-dynamics reference (`mechval.dynamics`) reads torque-driven and
+free mechanisms: no prescribed `drive` (None) or fewer drives than the
+mobility, applied `TorqueLaw`s, and the `InitialValue`s a run starts from.
 
 Raw columns (`motion_columns`, `reaction_columns`) name what adapters and
 the reference report: "crank.theta", "A.Fx", "drive.T", ...
@@ -104,6 +107,36 @@ class Drive:
 
 
 @dataclass(frozen=True)
+class TorqueLaw:
+    """An applied torque at a revolute joint, T(t) = torque + amplitude·
+    sin(2π·frequency·t + phase) (N·m, N·m, Hz, rad): T on body_j and −T on
+    body_i, about +z. Unlike a `Drive` it prescribes no motion (forward
+    dynamics, `mechval.dynamics`); its value is the raw column "NAME.T"."""
+
+    joint: str
+    torque: float = 0.0
+    amplitude: float = 0.0
+    frequency: float = 0.0
+    phase: float = 0.0
+    name: str = "drive"
+
+    def value(self, t: np.ndarray | float) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        return self.torque + self.amplitude * np.sin(2 * np.pi * self.frequency * t + self.phase)
+
+
+@dataclass(frozen=True)
+class InitialValue:
+    """A joint's coordinate at the start of a torque-driven or free run and
+    its rate: relative angle θj − θi (rad, rad/s) of a revolute joint, or
+    slide (m, m/s) of a prismatic one (`mechval.initial_state`)."""
+
+    joint: str
+    value: float
+    rate: float = 0.0
+
+
+@dataclass(frozen=True)
 class SpringDamper:
     """A linear spring-damper between point_a of body_a and point_b of
     body_b (body frames; world for the ground): tension
@@ -147,7 +180,8 @@ class Mechanism:
     kind: str
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
-    drive: Drive
+    #: None: no prescribed drive (torque-driven or free; `mechval.dynamics`).
+    drive: Drive | None
     gravity: Vec2
     #: Reference motion of every body frame at the given instants, as raw
     #: motion columns ("crank.theta", ...). Adapters use it to start from a
@@ -166,6 +200,11 @@ class Mechanism:
     forces: tuple[SpringDamper | BodyTorque, ...] = ()
     #: Approximate pose per body at t = 0 (picks the assembly branch).
     assembly_pose: Mapping[str, BodyPose] = field(default_factory=dict, repr=False, compare=False)
+    #: Applied joint torques (motor laws) that prescribe no motion.
+    torque_drives: tuple[TorqueLaw, ...] = ()
+    #: Where a torque-driven or free run starts: one joint value per degree
+    #: of freedom the drives leave.
+    initial_values: tuple[InitialValue, ...] = ()
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -175,7 +214,7 @@ class Mechanism:
 
     @property
     def drives(self) -> tuple[Drive, ...]:
-        return (self.drive, *self.extra_drives)
+        return tuple(d for d in (self.drive, *self.extra_drives) if d is not None)
 
     @property
     def has_gravity(self) -> bool:
@@ -194,5 +233,6 @@ class Mechanism:
             columns += [f"{j.name}.Fx", f"{j.name}.Fy"]
             if j.kind == "prismatic":
                 columns.append(f"{j.name}.M")
-        return columns + [d.effort_column(self.joint(d.joint).kind) for d in self.drives]
+        return (columns + [d.effort_column(self.joint(d.joint).kind) for d in self.drives]
+                + [f"{law.name}.T" for law in self.torque_drives])
 

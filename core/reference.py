@@ -72,6 +72,14 @@ class ReferenceAdapter(EngineAdapter):
         return {}
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.drive is None or mechanism.torque_drives or mechanism.initial_values:   # forward dynamics
+            from .dynamics import raw_dynamics
+            from .planar_solver import MechanismError
+            try:
+                solution = raw_dynamics(mechanism, times)
+            except MechanismError as exc:
+                raise Unrepresentable(exc.key, exc.reason) from None
+            return RawRun(solution.frame, solution.missing, RunInfo(facts=dict(solution.facts)))
         if mechanism.kind == "planar":     # no closed form: the general reference
             try:
                 solution = raw_planar(mechanism, times)

@@ -1,0 +1,342 @@
+"""Forward dynamics of a planar mechanism: the motion under applied torque
+laws, force elements, gravity and damping, integrated from a consistent
+initial state (the reference for torque-driven and free scenes).
+
+Equations of motion in absolute coordinates (Nikravesh 1988, ch. 6; Haug
+1989, ch. 11): M·q̈ + Φqᵀ·λ = Q(q, q̇, t), with Φ the joints' rows and any
+prescribed drives' (`mechval.planar_constraints`), M and Q from
+`mechval.planar_forces` plus the `TorqueLaw`s (T on body_j, −T on body_i).
+
+Minimal coordinates by coordinate partitioning (Wehage & Haug 1982): the
+stated joints' coordinates z (`mechval.initial_state`) are integrated,
+y = (z, ż), by scipy's `solve_ivp` (DOP853 by default, Hairer, Nørsett &
+Wanner, *Solving ODEs I*, §II.10; or Radau). At every evaluation:
+- positions q: Newton on Φ(q, t) = 0 with the coordinate rows held at z,
+  from the previous evaluation's q moved by ∂q/∂z·Δz, to its fixed point;
+- velocities: Φq·q̇ = −Φt with the coordinate rows' rates ż;
+- accelerations: Φq·q̈ = γ + E·z̈ (E the coordinate rows' unit columns), so
+  q̈ = q̈0 + B·z̈ with Φq·q̈0 = γ, Φq·B = E; projecting the equations of
+  motion on B (Bᵀ·Φqᵀ = Eᵀ, and the coordinate rows carry no force) gives
+  (Bᵀ·M·B)·z̈ = Bᵀ·(Q − M·q̈0), a k×k solve for k degrees of freedom.
+The constraints hold to rounding at every evaluation: no drift, no
+stabilisation. The integrator's evaluations, one instant each, solve with
+Φq by LU (QR with redundant rows) of the scaled Jacobian; the outputs, in
+batches, by the tree elimination of `mechval.planar_tree`.
+
+Output at the requested instants: z, ż from the integrator's dense output;
+q predicted by quintic Hermite interpolation between the accepted steps
+(`mechval.planar_positions.Nodes`) and corrected by Newton in batches, then
+q̇, q̈ as above and the multipliers from M·q̈ + Φqᵀ·λ = Q, turned into the
+prescribed reference's raw columns (`mechval.planar_solver`, same signs).
+A torque law's column holds the torque it applies. The facts state the
+integrator, its tolerances, steps and evaluations, and the largest
+constraint residual at the outputs (`constraint_drift_max`, scaled: lengths
+over the mechanism's size).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+from scipy.integrate import solve_ivp
+from scipy.linalg import lu_factor, lu_solve, qr, solve_triangular
+
+from .initial_state import SINGULAR_CONDITION, consistent_state, coordinate_name, with_coordinates
+from .mechanism import BodyPose, InitialValue, Mechanism
+from .planar_constraints import MechanismError
+from .planar_linear import settled
+from .planar_positions import Nodes, Structure
+from .planar_solver import CHUNK, UNIQUE_TOL, PlanarSolver, default_pose
+
+#: The integrator's relative tolerance by default (issue 15: 1e-10).
+RTOL = 1e-10
+METHODS = ("DOP853", "Radau")
+NEWTON_ITERATIONS = 30
+
+
+@dataclass(frozen=True)
+class DynamicSolution:
+    """Raw columns (mechval.mechanism names), reasons for missing columns,
+    the mechanism's structure and facts about the integration."""
+
+    frame: pd.DataFrame
+    missing: Mapping[str, str]
+    structure: Structure
+    facts: Mapping[str, Any] = field(default_factory=dict)
+
+
+def check_torque_laws(mech: Mechanism) -> None:
+    """Refuse torque laws on unknown or prismatic joints and clashing names."""
+    joints = {j.name: j for j in mech.joints}
+    names = [d.name for d in mech.drives]
+    for law in mech.torque_drives:
+        key = f"torque.{law.name}"
+        if law.joint not in joints:
+            raise MechanismError(key, f"unknown joint {law.joint!r} (joints: {', '.join(sorted(joints))})")
+        if joints[law.joint].kind != "revolute":
+            raise MechanismError(key, f"joint {law.joint!r} is prismatic: a torque law acts at a revolute joint")
+        values = (law.torque, law.amplitude, law.frequency, law.phase)
+        if not all(np.isfinite(v) for v in values):
+            raise MechanismError(key, f"torque, amplitude, frequency and phase must be finite, not {values}")
+        if law.name in names:
+            raise MechanismError(key, "another drive or torque law has this name")
+        names.append(law.name)
+
+
+class DenseFactor:
+    """Solves with Φq at one instant (the integrator's evaluations): LU of
+    the scaled Jacobian, or QR when redundant rows make it tall (the
+    systems solved are consistent, so least squares is exact). Same
+    interface as `mechval.planar_tree.Factor` for one instant: r (1, m)."""
+
+    def __init__(self, J: np.ndarray, row: np.ndarray, col: np.ndarray):
+        Js = J * row[:, None] * col[None, :]
+        self.row, self.col = row, col
+        self.square = Js.shape[0] == Js.shape[1]
+        self.lu = lu_factor(Js, check_finite=False) if self.square else qr(Js, mode="economic", check_finite=False)
+
+    def solve(self, r: np.ndarray) -> np.ndarray:
+        rs = self.row * r[0]
+        if self.square:
+            return (self.col * lu_solve(self.lu, rs, check_finite=False))[None]
+        q, R = self.lu
+        return (self.col * solve_triangular(R, q.T @ rs, check_finite=False))[None]
+
+
+class ForwardDynamics:
+    """Integrate one mechanism from its stated initial values (the
+    mechanism's own unless given; see the module docstring)."""
+
+    def __init__(self, mech: Mechanism, initial: Sequence[InitialValue] | None = None,
+                 pose: Mapping[str, BodyPose] | None = None, t0: float = 0.0):
+        check_torque_laws(mech)
+        initial = mech.initial_values if initial is None else tuple(initial)
+        self.mech = mech
+        self.start = consistent_state(mech, initial, pose or default_pose(mech, t0), t0)
+        self.joints = tuple(v.joint for v in initial)
+        self.solver = PlanarSolver(with_coordinates(mech, self.joints))
+        c = self.solver.c
+        self.rows = np.array([c.drive_rows[coordinate_name(j)] for j in self.joints], dtype=int)
+        self.k = len(self.joints)
+        ends = lambda j: (c.index.get(j.body_i, -1), c.index.get(j.body_j, -1))
+        self.torque_bodies = [ends(mech.joint(law.joint)) for law in mech.torque_drives]
+        self._restart()
+
+    def _restart(self) -> None:
+        """Warm-start the next evaluation's Newton from the initial state."""
+        self.evaluations = 0
+        self._last = (self.start.t0, self.start.z, self.start.q[None], np.zeros((1, self.solver.c.n, self.k)))
+
+    # -- the state at instants (batched) --------------------------------------------------------
+
+    def _torques(self, t: np.ndarray) -> np.ndarray:
+        """The torque laws' generalised forces (instants, n)."""
+        Q = np.zeros((len(t), self.solver.c.n))
+        for law, (i, j) in zip(self.mech.torque_drives, self.torque_bodies):
+            T = law.value(t)
+            if j >= 0:
+                Q[:, 3 * j + 2] += T
+            if i >= 0:
+                Q[:, 3 * i + 2] -= T
+        return Q
+
+    def _dense(self, q: np.ndarray, f: dict, t: np.ndarray) -> DenseFactor:
+        scaling = self.solver.scaling
+        return DenseFactor(self.solver.c.jacobian(q, f)[0], scaling.row, scaling.column)
+
+    def _positions(self, q: np.ndarray, t: np.ndarray, z: np.ndarray, factor_of=None):
+        """Newton on Φ(q, t) = 0 with the coordinate rows at z, from q, to
+        the fixed point; returns q, its frames and the factor of Φq one
+        rounding-level step before it (as `PlanarSolver._correct`).
+        `factor_of(q, frames, t)`: the tree elimination unless given."""
+        factor_of = factor_of or self.solver._factor
+        c, scaling = self.solver.c, self.solver.scaling
+        previous = np.full(len(q), np.inf)
+        for _ in range(NEWTON_ITERATIONS):
+            f = c.frames(q)
+            factor = factor_of(q, f, t)
+            residual = c.residual(q, t, f)
+            residual[:, self.rows] -= z
+            dq = -factor.solve(residual)
+            q = q + dq
+            size = scaling.step(dq)
+            done = settled(size, previous, scaling.tolerance(q))
+            if done.all():
+                return q, f, factor
+            previous = size
+        k = int(np.flatnonzero(~done)[0])
+        raise MechanismError("time", f"the loop cannot close at t = {t[k]:.6g} s with "
+                                     f"{', '.join(self.joints)} at {np.round(z[k], 6).tolist()}: Newton does not "
+                                     f"settle (last step {size[k]:.3g}, scaled)")
+
+    def _rates(self, q, t, zdot, f, factor):
+        """q̇, q̈, z̈, Q and B = ∂q/∂z at positions q (module docstring)."""
+        c, mass = self.solver.c, self.solver.mass
+        rhs = c.velocity_rhs(t)
+        rhs[:, self.rows] += zdot
+        v = factor.solve(rhs)
+        a0 = factor.solve(c.gamma(q, v, t, f))
+        B = np.empty((len(t), c.n, self.k))
+        for col, row in enumerate(self.rows):
+            unit = np.zeros((len(t), c.m))
+            unit[:, row] = 1.0
+            B[:, :, col] = factor.solve(unit)
+        Q = self.solver.forces.generalised(q, v, f) + self._torques(t)
+        projected = np.einsum("tik,ti->tk", B, Q - mass * a0)
+        inertia = np.einsum("tik,til->tkl", B, mass[None, :, None] * B)
+        zddot = np.linalg.solve(inertia, projected[..., None])[..., 0]
+        a = a0 + np.einsum("tik,tk->ti", B, zddot)
+        return v, a, zddot, Q, B
+
+    # -- the integration ------------------------------------------------------------------------
+
+    def _state(self, t: float, y: np.ndarray):
+        """q, q̇, q̈, z̈ at one instant, Newton starting from the previous
+        evaluation's q moved by B·Δz (B = ∂q/∂z there)."""
+        z, zdot = y[:self.k], y[self.k:]
+        _, z_last, q_last, B_last = self._last
+        tt = np.array([t])
+        q, f, factor = self._positions(q_last + B_last @ (z - z_last), tt, z[None], self._dense)
+        v, a, zddot, _, B = self._rates(q, tt, zdot[None], f, factor)
+        self._last = (t, z, q, B)
+        self.evaluations += 1
+        return q[0], v[0], a[0], zddot[0]
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        """dy/dt for y = (z, ż): the ODE that solve_ivp integrates."""
+        return np.concatenate([y[self.k:], self._state(t, y)[3]])
+
+    def tolerances(self, rtol: float, span: float) -> np.ndarray:
+        """Absolute tolerances of (z, ż): rtol times each coordinate's scale
+        (1 rad, or the mechanism's size for a slide) and times a rate scale
+        Ω = max(|ż0|, √|z̈0|, 1/span) for the rates (a run from rest at an
+        equilibrium still has a time scale: its span)."""
+        start = self.start
+        unit = np.array([1.0 if self.mech.joint(j).kind == "revolute" else self.solver.scaling.size
+                         for j in self.joints])
+        rate = self.rhs(start.t0, np.concatenate([start.z, start.zdot]))[self.k:]
+        omega = max(float(np.max(np.abs(start.zdot) / unit, initial=0.0)),
+                    float(np.sqrt(np.max(np.abs(rate) / unit, initial=0.0))), 1.0 / span)
+        return rtol * np.concatenate([unit, unit * omega])
+
+    def _stopped(self, failure: str) -> MechanismError:
+        """The refusal of a run that stopped, with the Jacobian's condition
+        at the last state reached: where it grows without bound the stated
+        joints' coordinates cannot parametrise the motion."""
+        t, _, q, _ = self._last
+        condition = float(self.solver._factor(q, self.solver.c.frames(q), np.array([t])).condition()[0])
+        return MechanismError("time", f"the integration stops after t = {t:.6g} s ({failure}); the Jacobian's "
+                                      f"condition there is {condition:.3g}: where it grows without bound, the "
+                                      f"coordinates of {', '.join(self.joints)} cannot parametrise the motion (a "
+                                      "toggle of those joints): state the initial values at other joints")
+
+    def _nodes(self, ts: np.ndarray, ys: np.ndarray) -> Nodes:
+        """q, q̇, q̈ at the accepted steps (each Newton-solved from the last,
+        from the initial state on: the branch and the turns the run took)."""
+        self._restart()
+        states = [self._state(t, y)[:3] for t, y in zip(ts, ys.T)]
+        nodes = Nodes(ts, *(np.array(x) for x in zip(*states)))
+        self._check_partition(ts, self.solver._factor(nodes.q, self.solver.c.frames(nodes.q), ts).condition())
+        return nodes
+
+    def _check_partition(self, t: np.ndarray, condition: np.ndarray) -> None:
+        """Refuse a run that passes where the stated joints' coordinates
+        cannot parametrise the motion (as `mechval.initial_state` refuses
+        such a start: the same bound on the Jacobian's condition)."""
+        if condition.max() > SINGULAR_CONDITION:
+            k = int(np.argmax(condition > SINGULAR_CONDITION))
+            raise MechanismError("time", f"at t = {t[k]:.6g} s the coordinates of {', '.join(self.joints)} cannot "
+                                         f"parametrise the motion (Jacobian condition {condition[k]:.3g} > "
+                                         f"{SINGULAR_CONDITION:.0e}: a toggle of those joints): state the initial "
+                                         "values at other joints")
+
+    def solve(self, t: np.ndarray, rtol: float = RTOL, method: str = "DOP853") -> DynamicSolution:
+        """Raw motion and reaction columns at instants t (nondecreasing,
+        from the initial instant on)."""
+        t = np.asarray(t, dtype=float)
+        start = self.start
+        if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) < 0) or t[0] < start.t0:
+            raise MechanismError("time", f"instants must be finite, nondecreasing and from t0 = {start.t0:g} s on")
+        if method not in METHODS:
+            raise MechanismError("method", f"unknown integrator {method!r} (known: {', '.join(METHODS)})")
+        y0 = np.concatenate([start.z, start.zdot])
+        t_end = float(t[-1])
+        clock = time.perf_counter()
+        if t_end > start.t0:
+            atol = self.tolerances(rtol, t_end - start.t0)
+            self._restart()
+            try:
+                sol = solve_ivp(self.rhs, (start.t0, t_end), y0, method=method, rtol=rtol, atol=atol,
+                                dense_output=True)
+                failure = "" if sol.status == 0 else f"the integrator stopped: {sol.message}"
+            except MechanismError as error:
+                failure = error.reason
+            if failure:
+                raise self._stopped(failure)
+            steps, evaluations, interpolate = len(sol.t) - 1, self.evaluations, sol.sol
+            nodes = self._nodes(sol.t, sol.y)
+        else:
+            atol, steps, evaluations = rtol * np.ones(2 * self.k), 0, 0
+            interpolate = lambda t: np.repeat(y0[:, None], len(np.atleast_1d(t)), axis=1)
+            nodes = self._nodes(np.array([start.t0]), y0[:, None])
+        integration = time.perf_counter() - clock
+        frame, missing, measured = self._output(t, interpolate, nodes)
+        facts = {"method": "forward dynamics: coordinate partitioning on the joints "
+                           f"{', '.join(self.joints) or '(none)'}, absolute coordinates, constraint multipliers "
+                           "(Wehage & Haug 1982, Haug 1989)",
+                 "integrator": f"scipy.integrate.solve_ivp {method}", "rtol": rtol,
+                 "atol": [float(x) for x in atol], "steps": steps, "evaluations": evaluations,
+                 "integration_time_s": integration, "mobility": start.structure.mobility,
+                 "redundant_constraints": start.structure.redundant, **measured}
+        return DynamicSolution(frame, missing, start.structure, facts)
+
+    # -- output ---------------------------------------------------------------------------------
+
+    def _batch(self, t: np.ndarray, y: np.ndarray, nodes: Nodes) -> dict[str, np.ndarray]:
+        z, zdot = y[:self.k].T, y[self.k:].T
+        q, f, factor = self._positions(nodes.predict(t), t, z)
+        v, a, _, Q, _ = self._rates(q, t, zdot, f, factor)
+        lam = factor.solve_transposed(Q - self.solver.mass * a)
+        residual = self.solver.c.residual(q, t)
+        residual[:, self.rows] -= z
+        return dict(q=q, v=v, a=a, lam=lam, frames=f, condition=factor.condition(),
+                    drift=np.abs(residual * self.solver.scaling.row).max(axis=-1),
+                    undetermined=factor.undetermined(self.solver.scaling.row, UNIQUE_TOL))
+
+    def _output(self, t: np.ndarray, interpolate, nodes: Nodes):
+        """The raw columns at t, their missing reasons and measured facts."""
+        solver, mech = self.solver, self.mech
+        augmented = ["t"] + solver.mech.motion_columns() + solver.mech.reaction_columns()
+        table = np.empty((len(augmented), len(t)))
+        table[0] = t
+        condition, drift = np.empty(len(t)), np.empty(len(t))
+        undetermined = np.zeros(solver.c.m, dtype=bool)
+        for start in range(0, len(t), CHUNK):
+            part = slice(start, start + CHUNK)
+            out = self._batch(t[part], interpolate(t[part]), nodes)
+            condition[part], drift[part] = out["condition"], out["drift"]
+            undetermined |= out["undetermined"]
+            table[1:, part] = solver._columns(out)
+        self._check_partition(t, condition)
+        undetermined[self.rows] = False
+        missing = solver._missing(undetermined, table, augmented, self.start.structure)
+        columns = {name: table[k] for k, name in enumerate(augmented)}
+        for law in mech.torque_drives:
+            columns[f"{law.name}.T"] = law.value(t)
+        names = ["t"] + mech.motion_columns() + mech.reaction_columns()
+        measured = {"constraint_drift_max": float(drift.max()), "condition_max": float(condition.max())}
+        frame = pd.DataFrame({name: columns[name] for name in names})
+        return frame, {k: v for k, v in missing.items() if k in names}, measured
+
+
+def raw_dynamics(mech: Mechanism, t: np.ndarray, initial: Sequence[InitialValue] | None = None,
+                 pose: Mapping[str, BodyPose] | None = None, rtol: float = RTOL,
+                 method: str = "DOP853") -> DynamicSolution:
+    """The forward-dynamics reference's raw columns of `mech` at instants t,
+    from the stated initial values (the mechanism's own unless given) at t[0]."""
+    t = np.asarray(t, dtype=float)
+    return ForwardDynamics(mech, initial, pose, float(t[0]) if t.size else 0.0).solve(t, rtol, method)

@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from .health import slide_rate
-from .mechanism import GROUND, BodyTorque, Joint, Mechanism, SpringDamper, point_motion
+from .kinematics import point_motion
+from .mechanism import GROUND, BodyTorque, Joint, Mechanism, SpringDamper
 
 
 def kinetic_energy(mech: Mechanism, raw) -> np.ndarray:

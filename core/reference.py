@@ -14,6 +14,7 @@ from . import __version__
 from .adapter import FEATURES, EngineAdapter, RawRun, RunInfo, Unrepresentable
 from .linkages import build_mechanism
 from .mechanism import Mechanism
+from .dynamics import raw_dynamics
 from .newton_euler import reaction_values
 from .planar_solver import MechanismError, raw_planar
 from .scenario import Scenario
@@ -73,8 +74,6 @@ class ReferenceAdapter(EngineAdapter):
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         if mechanism.drive is None or mechanism.torque_drives or mechanism.initial_values:   # forward dynamics
-            from .dynamics import raw_dynamics
-            from .planar_solver import MechanismError
             try:
                 solution = raw_dynamics(mechanism, times)
             except MechanismError as exc:

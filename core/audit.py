@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from .kinematics import rotate
-from .mechanism import GROUND, Joint, Mechanism
+from .mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
 
 #: Engines store what they are given in float64 (PyBullet too; only its
 #: `getLinkState` link-frame output is float32, and the audits do not use it)
@@ -164,18 +164,48 @@ def expected_model(mech: Mechanism) -> list[Expectation]:
                      Expectation(item, "relative rotation", "locked")]
         unit = "N·m·s/rad" if j.kind == "revolute" else "N·s/m"
         rows.append(Expectation(item, "damping", j.damping, unit, abs(j.damping)))
-    law = mech.drive.law
-    size = max(abs(law.phi0), abs(law.omega0), abs(law.alpha)) or 1.0
-    rows += [Expectation(DRIVE, "joint", mech.drive.joint),
-             Expectation(DRIVE, "phi0", law.phi0, "rad", size),
-             Expectation(DRIVE, "omega0", law.omega0, "rad/s", size),
-             Expectation(DRIVE, "alpha", law.alpha, "rad/s²", size)]
+    for drive in mech.drives:
+        item = drive_item(mech, drive)
+        law = drive.law
+        size = max(abs(law.phi0), abs(law.omega0), abs(law.alpha)) or 1.0
+        rows += [Expectation(item, "joint", drive.joint),
+                 Expectation(item, "phi0", law.phi0, "rad", size),
+                 Expectation(item, "omega0", law.omega0, "rad/s", size),
+                 Expectation(item, "alpha", law.alpha, "rad/s²", size)]
+    for force in mech.forces:
+        rows += _force_expectations(force, length)
     g = float(np.hypot(*mech.gravity))
     rows += [Expectation(SCENE, "gravity x", mech.gravity[0], "m/s²", g),
              Expectation(SCENE, "gravity y", mech.gravity[1], "m/s²", g),
              Expectation(SCENE, "gravity z", 0.0, "m/s²", g)]
     rows += [Expectation(SCENE, effect, absent) for effect, absent in ABSENT_EFFECTS.items()]
     return rows
+
+
+def drive_item(mech: Mechanism, drive: Drive) -> str:
+    """The first drive's rows are "drive" (as before several drives); the
+    others' "drive NAME"."""
+    return DRIVE if drive == mech.drive else f"{DRIVE} {drive.name}"
+
+
+def force_item(force: SpringDamper | BodyTorque) -> str:
+    return f"{'spring' if isinstance(force, SpringDamper) else 'torque'} {force.name}"
+
+
+def _force_expectations(force: SpringDamper | BodyTorque, length: float) -> list[Expectation]:
+    """A spring-damper's bodies, points (a and b, body frames), stiffness,
+    free length and damping; a body torque's body and torque."""
+    item = force_item(force)
+    if isinstance(force, BodyTorque):
+        return [Expectation(item, "body", force.body),
+                Expectation(item, "torque", force.torque, "N·m", abs(force.torque))]
+    rows = [Expectation(item, "bodies", f"{force.body_a}–{force.body_b}")]
+    for end, point in (("a", force.point_a), ("b", force.point_b)):
+        rows += [Expectation(item, f"point {end} x", point[0], "m", length),
+                 Expectation(item, f"point {end} y", point[1], "m", length)]
+    return rows + [Expectation(item, "stiffness", force.stiffness, "N/m", abs(force.stiffness)),
+                   Expectation(item, "free length", force.free_length, "m", length),
+                   Expectation(item, "damping", force.damping, "N·s/m", abs(force.damping))]
 
 
 def _verdict(expected: Expectation, reading: Reading, rtol: float) -> tuple[str, float]:

@@ -385,16 +385,23 @@ def test_meets_the_default_tolerances(name):
     assert not records.empty and failed.empty, failed[["signal", "max_error", "bound", "reason"]].to_string()
 
 
+#: Inverse mode evaluates the same equations as the reference at the same
+#: state: only rounding separates them (measured ≤ 5e-14 of each peak here).
+INVERSE_AGREEMENT = 1e-9
+
+
 @pytest.mark.parametrize("name", SCENES)
-def test_inverse_mode_meets_the_default_tolerances(name):
-    """Inverse dynamics at the reference state (no time integration): the
-    drives' efforts, every loop's force and the force elements' loads
-    taken out of the reactions."""
+def test_inverse_mode_reproduces_the_reference(name):
+    """Inverse dynamics at the reference state (no time integration) checks
+    frames and signs of the new elements alone: each drive's effort read
+    from its own column, every loop's force, the spring-dampers' and body
+    torques' loads (none may land in a reaction)."""
     scenario = scene(name)
     records = compare(simulate(scenario, "reference"), simulate(scenario, "mujoco", {"mode": "inverse"}),
                       scenario.tolerance_for("mujoco"), scenario.name, "mujoco")
-    failed = records[records["verdict"] == "fail"]
-    assert failed.empty, failed[["signal", "max_error", "bound", "reason"]].to_string()
+    signals = records[records["class"] != "health"]
+    off = signals[~(signals["max_error"] <= INVERSE_AGREEMENT * signals["peak"])]
+    assert len(signals) and off.empty, off[["signal", "max_error", "peak"]].to_string()
 
 
 @pytest.mark.parametrize("name", SCENES)
@@ -410,3 +417,53 @@ def test_the_model_holds_the_new_elements(name):
     items = set(table["item"])
     assert {f"spring {f.name}" if hasattr(f, "stiffness") else f"torque {f.name}" for f in mechanism.forces} <= items
     assert all(item in items for item in ["drive"] + [f"drive {d.name}" for d in mechanism.extra_drives])
+
+
+@pytest.mark.parametrize("name, element, quantity", [
+    ("fourbar-spring-damper", "stiffness", "stiffness"), ("fourbar-spring-damper", "springlength", "free length"),
+    ("fourbar-spring-damper", "damping", "damping"), ("fourbar-body-torques", "torque", "torque"),
+    ("two-drive-fivebar", "clock force", "alpha")])
+def test_the_audit_reads_the_new_elements_back(name, element, quantity):
+    """A changed value in the compiled model (not in the Mechanism) shows
+    as "differs" in that element's row: the audit reads MuJoCo's numbers."""
+    from mechval.audit import audit, expected_model
+    from mechval.engines.mujoco import Model, MujocoAdapter
+    from mechval.engines.mujoco_audit import Reader
+    scenario = scene(name)
+    mechanism = build_mechanism(scenario)
+    model = Model(mechanism, scenario.time.t, MujocoAdapter().settings_for(scenario, mechanism))
+    model.initial_state()
+    mujoco.mj_fwdPosition(model.m, model.d)
+    m, last = model.m, len(mechanism.forces) - 1
+    if element == "stiffness":
+        m.tendon_stiffness[model.tendon[last]] *= 1.5
+    elif element == "springlength":
+        m.tendon_lengthspring[model.tendon[last]] += 0.01
+    elif element == "damping":
+        m.tendon_damping[model.tendon[last]] *= 1.5
+    elif element == "torque":
+        m.actuator_biasprm[model.actuator[last], 0] *= 1.5
+    else:                                        # the second drive's clock
+        m.actuator_biasprm[m.actuator(model.clocks[1]).id, 0] += 1e6
+    table = audit(expected_model(mechanism), Reader(model).readings())
+    bad = failures(table)
+    # One element differs (a clock's force also shifts φ0, ω0 read back at t = 0).
+    assert quantity in set(bad["quantity"]) and bad["item"].nunique() == 1, format_audit(bad)
+    assert bad["item"].iloc[0].startswith(("spring", "torque", "drive ")), format_audit(bad)
+
+
+def test_declares_every_feature_and_the_harness_still_refuses_undeclared_ones():
+    """MuJoCo declares all FEATURES; a MuJoCo adapter that declared none
+    would still be refused each, naming the key (the refusal is the
+    harness's, not the adapter's)."""
+    from mechval.adapter import FEATURES
+    from mechval.engines.mujoco import MujocoAdapter
+    from mechval.scenario import ScenarioError
+    assert MujocoAdapter.features == frozenset(FEATURES)
+
+    class Undeclared(MujocoAdapter):
+        features = frozenset()
+
+    with pytest.raises(ScenarioError, match="two-drive-fivebar.toml: drive: mujoco: its adapter does not build "
+                                            "several drives yet"):
+        simulate(scene("two-drive-fivebar"), Undeclared())

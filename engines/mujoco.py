@@ -1,9 +1,11 @@
 """MuJoCo adapter: the generic planar mechanism in MuJoCo 4.0.
 
-The model (see `mujoco_model`): a spanning tree of hinge/slide joints, the
-loop closed by an equality `connect` at one revolute pin, the crank tied by a
-joint equality to a heavy clock whose coordinate is φ(t), dampers as fixed
-tendons, no geoms, contacts and autoreset off, stiffened soft constraints.
+The model (see `mujoco_model`): a spanning tree of hinge/slide joints, each
+loop closed by an equality `connect` at one revolute pin, each driven joint
+tied by a joint equality to its own heavy clock whose coordinate is φ(t),
+dampers as fixed tendons, spring-dampers as spatial tendons, body torques as
+constant actuator forces, no geoms, contacts and autoreset off, stiffened
+soft constraints.
 
 Modes (setting "mode"):
 - "forward": MuJoCo integrates (`mujoco.rollout`, no Python per step) from
@@ -28,13 +30,22 @@ at the sample instant):
   axis is the joint-space force (the damper), not a reaction, and is removed
   by subtracting qfrc_passive of that coordinate along the axis; the couple M
   on body_j is the z torque shifted to body_j's joint point, signed likewise.
-- Cut pin: the `connect` rows of `efc_force` are the world force on site1's
-  body, which is body_j: Fij directly (inverse mode: the least-squares λ).
-  It is read from `cfrc_ext`, where MuJoCo adds it (`cut_force`).
-- drive.T: the joint equality's `efc_force` λ is the generalized force on
-  the drive hinge coordinate; T = sign·λ (sign −1 if the hinge's child is
-  body_i). It is read from `qfrc_constraint` of the clock (`drive_torque`).
-  A damper at the drive pin is a tendon, not part of this force.
+- Cut pins: the `connect` rows of `efc_force` are the world force on
+  site1's body, which is body_j: Fij directly (inverse mode: the
+  least-squares λ of all cuts and drives at once).
+- Drive efforts (T or F): each joint equality's `efc_force` λ is the
+  generalized force on its joint's coordinate; effort = sign·λ (sign −1 if
+  the joint's child is body_i). It is read from `qfrc_constraint` of the
+  drive's own clock (`drive_efforts`). A damper at the drive joint is a
+  tendon, not part of this force. A prismatic joint's axial force (damper,
+  drive) is not reaction: with a drive on it or force elements in the
+  scene, the whole axial part is projected out.
+- Force elements: MuJoCo 4.0's `mj_rnePostConstraint` adds the spatial
+  tendons' forces (the spring-dampers, spring and damper parts) to
+  `cfrc_ext` at their sites, so `cfrc_int` already leaves them out. A body
+  torque's actuator acts through the hinges of the body's path (same
+  motion), so a slide's couple M below it gets the torque taken out like
+  the cut damper's couple (`torque_loads`); a pin's Fx, Fy do not see it.
 
   The cut pin's damper acts through its tendon on the tree's hinges, which
   moves its couple onto the path's bodies (same motion, other internal
@@ -68,14 +79,15 @@ import numpy as np
 import pandas as pd
 from mujoco import rollout
 
-from mechval.adapter import as_float, ceil_or_inf, steps_per_interval
+from mechval.adapter import FEATURES, as_float, ceil_or_inf, steps_per_interval
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 from mechval.kinematics import separation_gap, slide_axis
-from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism
+from mechval.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
 
-from .mujoco_model import (CLOCK, DRIVE, INTEGRATORS, LOOP, SOLIMP, Names, Topology, coordinates, inertia_shift,
-                           mjcf, raw_columns, topology)
+from .mujoco_model import (INTEGRATORS, SOLIMP, Names, Topology, clock_name, coordinates, drive_name, force_name,
+                           force_sites, inertia_shift, loop_name, mjcf, raw_columns, topology,
+                           torque_coefficients)
 from .mujoco_snapshot import Snapshot
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -122,6 +134,10 @@ class MujocoAdapter(EngineAdapter):
         "Euler": {"integrator": "Euler", "solref_steps": 2.0, "drive_solref_steps": 2.0},
         "implicitfast": {"integrator": "implicitfast", "solref_steps": 2.0, "drive_solref_steps": 2.0}}
 
+    #: Each built by MuJoCo itself (module docstring): a drive per clock and
+    #: joint equality (hinge or slide), spring-dampers as spatial tendons,
+    #: body torques as constant actuator forces on fixed tendons.
+    features: ClassVar[frozenset[str]] = frozenset(FEATURES)
     step_settings = ("timestep", "refine", "solref_steps", "preroll_timeconsts")
     output_copies, bytes_per_step = 24, 128       # the rollout keeps every state
 
@@ -176,7 +192,7 @@ class MujocoAdapter(EngineAdapter):
             frame, info = runner()
         solref = lambda eq: " ".join(f"{v:.6g}" for v in model.m.eq_solref[eq])
         info.update(build_time_s=build_time, step=model.dt, solimp=settings["solimp"],
-                    solref=solref(model.loop_eq), drive_solref=solref(model.drive_eq))
+                    solref=solref(model.loop_eq) if model.loop_eqs else "none", drive_solref=solref(model.drive_eq))
         return RawRun(frame, {}, RunInfo.of(info))
 
 
@@ -257,12 +273,25 @@ class Model:
         self.d = mujoco.MjData(self.m)
         m = self.m
         self.jid = {tj.joint.name: m.joint(names.joint[tj.joint.name]).id for tj in self.topo.tree}
-        self.jid[CLOCK] = m.joint(CLOCK).id
+        self.clocks = [clock_name(k) for k in range(len(mech.drives))]
+        self.jid.update({clock: m.joint(clock).id for clock in self.clocks})
         self.bid = {b.name: m.body(names.body[b.name]).id for b in mech.bodies}
         self.sid = {name: m.site(name).id for j in mech.joints for name in names.sites(j)}
-        self.loop_eq, self.drive_eq = m.equality(LOOP).id, m.equality(DRIVE).id
+        self.sid.update({name: m.site(name).id for k, f in enumerate(mech.forces) if isinstance(f, SpringDamper)
+                         for name in force_sites(k)})
+        self.loop_eqs = [m.equality(loop_name(k)).id for k in range(len(self.topo.cuts))]
+        self.drive_eqs = [m.equality(drive_name(k)).id for k in range(len(mech.drives))]
+        self.loop_eq, self.drive_eq = (self.loop_eqs or [None])[0], self.drive_eqs[0]
         self.izz_shift = inertia_shift(mech)
         self.drive = self.topo.of_joint(mech.drive.joint)
+        self.drive_joints = [self.topo.of_joint(d.joint) for d in mech.drives]
+        #: Per force element its MuJoCo tendon.
+        #: Per force element (by index) its MuJoCo tendon, and per body
+        #: torque its actuator (none for a body that never turns:
+        #: `torque_coefficients`).
+        self.tendon = {k: m.tendon(force_name(k)).id for k in range(len(mech.forces))
+                       if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, force_name(k)) >= 0}
+        self.actuator = {k: m.actuator(force_name(k)).id for k in self.tendon if isinstance(mech.forces[k], BodyTorque)}
 
     def start(self, preroll: int, dt: float) -> tuple[int, dict[str, np.ndarray]]:
         """The longest pre-roll (≤ the requested one) along φ(t) over which
@@ -322,13 +351,17 @@ class Model:
         samples[after == 0] = state0
         samples[after > 0] = states[after[after > 0] - 1]
         snapshot = Snapshot(d, RECORDED, len(samples))
+        loop_force, rows = np.empty((len(samples), 3 * len(self.loop_eqs))), None
         for k, state in enumerate(samples):
             mujoco.mj_setState(m, d, state, FULL)
             mujoco.mj_forward(m, d)
             mujoco.mj_rnePostConstraint(m, d)
             snapshot.take(k)
+            rows = self.loop_rows() if rows is None else rows
+            loop_force[k] = d.efc_force[rows]
         record = snapshot.fields() | self.state_fields(samples)
-        frame, info = self.columns(record, self.cut_force(record), self.drive_torque(record))
+        frame, info = self.columns(record, loop_force.reshape(len(samples), -1, 3)[:, :, :2],
+                                   self.drive_efforts(record))
         info.update(warning_info(self.warning_counts()))    # rollout and read-out: the rollout resets them
         info.update(steps=nstep, preroll_steps_used=self.preroll, wall_time_s=wall,
                     nan_free=bool(np.all(np.isfinite(states))))
@@ -354,75 +387,89 @@ class Model:
         motion = raw_columns(self.mech.motion(self.times))
         coords = coordinates(self.mech, self.topo, motion)
         dofs = [m.jnt_dofadr[self.jid[tj.joint.name]] for tj in self.topo.tree]
-        site_i, site_j = (self.sid[s] for s in self.names.sites(self.topo.cut))
+        cut_sites = [tuple(self.sid[s] for s in self.names.sites(cut)) for cut in self.topo.cuts]
         jac_i, jac_j = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        e_drive = np.eye(m.nv)[:, m.jnt_dofadr[self.jid[self.drive.joint.name]]]
+        e_drives = np.eye(m.nv)[:, [m.jnt_dofadr[self.jid[tj.joint.name]] for tj in self.drive_joints]]
+        # The body torques' generalized force: its actuator force on each
+        # hinge of the body's path (`torque_coefficients`).
+        known = np.zeros(m.nv)
+        for k, act in self.actuator.items():
+            for joint, coef in torque_coefficients(self.topo, self.mech.forces[k].body).items():
+                known[m.jnt_dofadr[self.jid[joint]]] += coef * m.actuator_biasprm[act, 0] * m.actuator_gear[act, 0]
         snapshot = Snapshot(d, RECORDED + ("qpos", "qvel"), len(self.times))
-        cut_force, torque = np.empty((len(self.times), 2)), np.empty(len(self.times))
+        n, ncut = len(self.times), len(self.topo.cuts)
+        cut_force, efforts = np.empty((n, ncut, 2)), np.empty((n, len(self.drive_joints)))
+        signs = np.array([tj.sign for tj in self.drive_joints])
         warnings: collections.Counter = collections.Counter()
         start = time.perf_counter()
-        for k in range(len(self.times)):
+        for k in range(n):
             warnings += self.warning_counts()           # before mj_resetData clears them
             mujoco.mj_resetData(m, d)
             self.set_reference(motion, k, coords)
             mujoco.mj_inverse(m, d)
-            mujoco.mj_jacSite(m, d, jac_i, None, site_i)
-            mujoco.mj_jacSite(m, d, jac_j, None, site_j)
-            # qfrc_inverse = e_drive·τ + (J_j − J_i)ᵀ·λ over the mechanism's
-            # coordinates (λ = in-plane force on body_j through the cut pin).
-            basis = np.column_stack([e_drive, (jac_j - jac_i)[:2].T])[dofs]
-            tau, lx, ly = np.linalg.lstsq(basis, d.qfrc_inverse[dofs], rcond=None)[0]
-            self.apply_loop_force(np.array([lx, ly]))
+            # qfrc_inverse = Σ e_drive·τ + Σ (J_j − J_i)ᵀ·λ over the mechanism's
+            # coordinates (λ = in-plane force on body_j through each cut pin),
+            # plus the body torques' actuator forces (known, taken out).
+            columns = [e_drives]
+            for site_i, site_j in cut_sites:
+                mujoco.mj_jacSite(m, d, jac_i, None, site_i)
+                mujoco.mj_jacSite(m, d, jac_j, None, site_j)
+                columns.append((jac_j - jac_i)[:2].T)
+            solution = np.linalg.lstsq(np.column_stack(columns)[dofs], (d.qfrc_inverse - known)[dofs], rcond=None)[0]
+            efforts[k] = signs * solution[:len(signs)]
+            cut_force[k] = solution[len(signs):].reshape(ncut, 2)
+            self.apply_loop_forces(cut_force[k])
             mujoco.mj_rnePostConstraint(m, d)
             snapshot.take(k)
-            cut_force[k] = lx, ly
-            torque[k] = self.drive.sign * tau
-        frame, info = self.columns(snapshot.fields() | {"time": self.times}, cut_force, torque)
+        frame, info = self.columns(snapshot.fields() | {"time": self.times}, cut_force, efforts)
         info.update(warning_info(warnings + self.warning_counts()), wall_time_s=time.perf_counter() - start)
         return frame, info
 
-    def apply_loop_force(self, force: np.ndarray) -> None:
-        """λ on body_j and −λ on body_i at the cut pin, as xfrc_applied
-        (force at the body's centre of mass plus the moment of the shift)."""
+    def apply_loop_forces(self, forces: np.ndarray) -> None:
+        """λ on body_j and −λ on body_i at each cut pin (`forces` (cuts, 2)),
+        as xfrc_applied (force at the body's centre of mass plus the moment
+        of the shift)."""
         d = self.d
-        cut = self.topo.cut
         d.xfrc_applied[:] = 0
-        site_i, site_j = self.names.sites(cut)
-        for body, site, sign in ((cut.body_j, site_j, 1.0), (cut.body_i, site_i, -1.0)):
-            if body == GROUND:
-                continue
-            bid = self.bid[body]
-            f = np.array([sign * force[0], sign * force[1], 0.0])
-            arm = d.site_xpos[self.sid[site]] - d.xipos[bid]
-            d.xfrc_applied[bid, :3] += f
-            d.xfrc_applied[bid, 3:] += np.cross(arm, f)
+        for cut, force in zip(self.topo.cuts, forces):
+            site_i, site_j = self.names.sites(cut)
+            for body, site, sign in ((cut.body_j, site_j, 1.0), (cut.body_i, site_i, -1.0)):
+                if body == GROUND:
+                    continue
+                bid = self.bid[body]
+                f = np.array([sign * force[0], sign * force[1], 0.0])
+                arm = d.site_xpos[self.sid[site]] - d.xipos[bid]
+                d.xfrc_applied[bid, :3] += f
+                d.xfrc_applied[bid, 3:] += np.cross(arm, f)
 
     # -- read-out -----------------------------------------------------------------
 
-    def cut_force(self, S: Mapping[str, np.ndarray]) -> np.ndarray:
-        """Fij (n, 2) of the cut pin: the `connect` force on site1's body,
-        body_j (its efc_force rows, which mj_rnePostConstraint adds to
-        cfrc_ext of body_j and, negated, of body_i; nothing else is
-        external in a forward run, so the force part is that force, bit
-        for bit)."""
-        cut = self.topo.cut
-        if cut.body_j != GROUND:
-            return S["cfrc_ext"][:, self.bid[cut.body_j], 3:5]
-        return -S["cfrc_ext"][:, self.bid[cut.body_i], 3:5]
+    def loop_rows(self) -> np.ndarray:
+        """The efc rows of the cut pins' `connect` equalities, 3 per cut in
+        the order of `topo.cuts` (x, y, z world force on site1's body,
+        body_j), in the data's current state. With contacts off and no
+        limits the rows are the same at every state."""
+        d = self.d
+        equality = d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+        rows = [np.flatnonzero(equality & (d.efc_id[:d.nefc] == eq)) for eq in self.loop_eqs]
+        if any(len(r) != 3 for r in rows):
+            raise RuntimeError("mujoco: a connect equality does not have 3 constraint rows")
+        return np.concatenate(rows).astype(int) if rows else np.zeros(0, dtype=int)
 
-    def drive_torque(self, S: Mapping[str, np.ndarray]) -> np.ndarray:
-        """T (n,): the drive equality's force λ on the drive hinge
-        coordinate, T = sign·λ. The equality q_drive − sign·q_clock = 0 is
-        the only constraint on the clock, so its generalized constraint
-        force there is −sign·λ exactly."""
-        clock_dof = self.m.jnt_dofadr[self.jid[CLOCK]]
-        return -S["qfrc_constraint"][:, clock_dof]
+    def drive_efforts(self, S: Mapping[str, np.ndarray]) -> np.ndarray:
+        """(n, drives): each drive equality's force λ on its joint's
+        coordinate, effort = sign·λ (T of a hinge, F of a slide). The
+        equality q_drive − sign·q_clock = 0 is the only constraint on its
+        own clock, so its generalized constraint force there is −sign·λ
+        exactly."""
+        dofs = [self.m.jnt_dofadr[self.jid[clock]] for clock in self.clocks]
+        return -S["qfrc_constraint"][:, dofs]
 
     def columns(self, S: Mapping[str, np.ndarray], cut_force: np.ndarray,
-                drive_torque: np.ndarray) -> tuple[pd.DataFrame, dict[str, Any]]:
+                efforts: np.ndarray) -> tuple[pd.DataFrame, dict[str, Any]]:
         """Raw columns at every sample (vectorised over samples) from the
-        recorded data fields, and summary facts. `cut_force` (n, 2) is Fij
-        of the cut pin, `drive_torque` (n,) the drive's T."""
+        recorded data fields, and summary facts. `cut_force` (n, cuts, 2)
+        is Fij of each cut pin, `efforts` (n, drives) each drive's T or F."""
         m, mech = self.m, self.mech
         gravity = np.zeros(3) if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else m.opt.gravity
         col: dict[str, np.ndarray] = {"t": self.times}
@@ -454,6 +501,8 @@ class Model:
         # Only x, y forces and the z couple: the out-of-plane reactions of a
         # planar loop closed in 3D are statically indeterminate, so MuJoCo's
         # values there are legitimate but arbitrary and are not reported.
+        torques = self.torque_loads()
+        driven = {d.joint for d in mech.drives}
         for tj in self.topo.tree:
             bid, jid, name = self.bid[tj.child], self.jid[tj.joint.name], tj.joint.name
             torque, force = S["cfrc_int"][:, bid, :3], S["cfrc_int"][:, bid, 3:]
@@ -463,22 +512,33 @@ class Model:
                 # the whole moment there, and the reaction force is the rest.
                 p_j = S["site_xpos"][:, self.sid[self.names.sites(tj.joint)[1]]]
                 moment = torque + cross(S["subtree_com"][:, m.body_rootid[bid]] - p_j, force)
+                below = self.topo.subtree(tj.child)
+                body_torques = sum(torque for body, torque in torques if body in below)
                 col[f"{name}.M"] = tj.sign * (moment[:, 2] - self.cut_damper_couple(tj.child, col)
-                                              - self.inertia_shift_couple(tj.child, col))
-                force = force - S["qfrc_passive"][:, m.jnt_dofadr[jid], None] * S["xaxis"][:, jid]
+                                              - self.inertia_shift_couple(tj.child, col) - body_torques)
+                axis = S["xaxis"][:, jid]
+                if name in driven or mech.forces:
+                    # The drive's force (and any spring's share of qfrc_passive)
+                    # is along the axis too: none of the axial part is reaction.
+                    force = force - np.sum(force * axis, axis=1)[:, None] * axis
+                else:
+                    force = force - S["qfrc_passive"][:, m.jnt_dofadr[jid], None] * axis
             col[f"{name}.Fx"], col[f"{name}.Fy"] = tj.sign * force[:, 0], tj.sign * force[:, 1]
-        cut = self.topo.cut.name
-        col[f"{cut}.Fx"], col[f"{cut}.Fy"] = cut_force[:, 0], cut_force[:, 1]
-        col[DRIVE_TORQUE] = drive_torque
+        for k, cut in enumerate(self.topo.cuts):
+            col[f"{cut.name}.Fx"], col[f"{cut.name}.Fy"] = cut_force[:, k, 0], cut_force[:, k, 1]
+        for k, drive in enumerate(mech.drives):
+            col[drive.effort_column(mech.joint(drive.joint).kind)] = efforts[:, k]
         names = ["t"] + mech.motion_columns() + mech.reaction_columns()
         # One 2-D block: a DataFrame from a dict of columns costs milliseconds.
         block = np.empty((len(self.times), len(names)))
         for k, name in enumerate(names):
             block[:, k] = col[name]
         frame = pd.DataFrame(block, columns=names)
-        drive_q = S["qpos"][:, m.jnt_qposadr[self.jid[self.drive.joint.name]]]
+        drive_error = max(float(np.abs(tj.sign * S["qpos"][:, m.jnt_qposadr[self.jid[tj.joint.name]]]
+                                       - drive.law.angle(self.times)).max())
+                          for tj, drive in zip(self.drive_joints, mech.drives))
         info = {"closure_gap_max": float(self.gaps(S["site_xpos"], col).max()),
-                "drive_error_max": float(np.abs(self.drive.sign * drive_q - mech.drive.law.angle(self.times)).max()),
+                "drive_error_max": drive_error,
                 "time_stamp_error_max": float(np.abs(S["time"] - self.times).max())}
         return frame, info
 
@@ -491,12 +551,26 @@ class Model:
         path's bodies instead of the pin's: the moment MuJoCo transmits
         through a joint above the pin includes it, and it is taken out here.
         """
-        cut, below = self.topo.cut, self.topo.subtree(child)
-        if cut.damping == 0.0 or (cut.body_i in below) == (cut.body_j in below):
-            return 0.0
-        omega = lambda b: 0.0 if b == GROUND else col[f"{b}.omega"]
-        couple_on_j = -cut.damping * (omega(cut.body_j) - omega(cut.body_i))
-        return couple_on_j if cut.body_j in below else -couple_on_j
+        below, total = self.topo.subtree(child), 0.0
+        for cut in self.topo.cuts:
+            if cut.damping == 0.0 or (cut.body_i in below) == (cut.body_j in below):
+                continue
+            omega = lambda b: 0.0 if b == GROUND else col[f"{b}.omega"]
+            couple_on_j = -cut.damping * (omega(cut.body_j) - omega(cut.body_i))
+            total = total + (couple_on_j if cut.body_j in below else -couple_on_j)
+        return total
+
+    def torque_loads(self) -> list[tuple[str, float]]:
+        """(body, torque) of every body torque: its actuator's constant
+        force (or the scene's torque on a body that never turns, which has
+        no actuator: `torque_coefficients`)."""
+        m, loads = self.m, []
+        for k, force in enumerate(self.mech.forces):
+            if isinstance(force, BodyTorque):
+                act = self.actuator.get(k)
+                loads.append((force.body, force.torque if act is None
+                              else float(m.actuator_biasprm[act, 0] * m.actuator_gear[act, 0])))
+        return loads
 
     def inertia_shift_couple(self, child: str, col: Mapping[str, np.ndarray]) -> np.ndarray | float:
         """The couple the izz lent inside a turning group (`planar_inertias`)

@@ -5,8 +5,12 @@ The model is built by the adapter's own `Model` (the MJCF of
 (`Model.initial_state`, the reference state at the start of the pre-roll);
 `mj_fwdPosition` then gives every position-dependent quantity. Mechanism
 bodies, tree joints and the loop and drive equalities are found through the
-adapter's own maps (`Model.bid`, `Model.jid`, `Model.loop_eq`,
-`Model.drive_eq`), never by element name.
+adapter's own maps (`Model.bid`, `Model.jid`, `Model.loop_eqs`,
+`Model.drive_eqs`, `Model.tendon`, `Model.actuator`), never by element name.
+Spring-dampers are spatial tendons between two sites (bodies, points,
+stiffness, spring length, damping read back); body torques are constant
+actuator forces on fixed tendons whose row is the body's angular-velocity
+Jacobian; neither is counted again as a joint spring, damper or motor.
 
 Conversion to the Mechanism's conventions: positions are MuJoCo's world
 positions in that state (`xipos` for centres of mass, `xanchor` for tree
@@ -28,12 +32,11 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (DRIVE, SCENE, Reading, audit, axis_readings, bodies_text, body_item, expected_model, inertia_readings,
-                           joint_item, listing, point_readings, to_body)
-from mechval.mechanism import GROUND, Joint, Mechanism
+from mechval.audit import (SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item, expected_model,
+                           force_item, inertia_readings, joint_item, listing, point_readings, to_body)
+from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
 
 from .mujoco import Model
-from .mujoco_model import CLOCK
 
 DSBL, ENBL = mujoco.mjtDisableBit, mujoco.mjtEnableBit
 KINDS = {mujoco.mjtJoint.mjJNT_HINGE: "revolute", mujoco.mjtJoint.mjJNT_SLIDE: "prismatic"}
@@ -66,9 +69,14 @@ class Reader:
         self.model, self.m, self.d, self.mech = model, model.m, model.d, model.mech
         self.start = model.start_motion
         self.body_name = {bid: name for name, bid in model.bid.items()} | {0: GROUND}
-        self.clock_jnt = model.jid[CLOCK]
-        self.clock_body = int(self.m.jnt_bodyid[self.clock_jnt])
-        self.body_name[self.clock_body] = "clock"
+        self.clock_jnts = [model.jid[clock] for clock in model.clocks]
+        self.clock_body = int(self.m.jnt_bodyid[self.clock_jnts[0]])
+        for k, jnt in enumerate(self.clock_jnts):
+            self.body_name[int(self.m.jnt_bodyid[jnt])] = "clock" if k == 0 else f"clock {k}"
+        #: The force elements' tendons and the body torques' actuators: each
+        #: is audited as its force element, not as a spring, damper or motor.
+        self.element_tendons = set(model.tendon.values())
+        self.torque_actuators = set(model.actuator.values())
         self.off = int(self.m.opt.disableflags)
 
     def disabled(self, bit) -> bool:
@@ -85,7 +93,9 @@ class Reader:
         damping, other_dampers = self.dampers()
         out += [Reading(joint_item(j.name), "damping", damping[j.name][0], damping[j.name][1])
                 for j in self.mech.joints]
-        return out + self.drive() + self.scene(other_dampers) + self.notes()
+        out += [r for k, drive in enumerate(self.mech.drives) for r in self.drive(k, drive)]
+        out += [r for k, force in enumerate(self.mech.forces) for r in self.force(k, force)]
+        return out + self.scene(other_dampers) + self.notes()
 
     # -- bodies -------------------------------------------------------------------
 
@@ -117,8 +127,8 @@ class Reader:
     def joint(self, joint: Joint) -> list[Reading]:
         if joint.name in self.model.jid:
             return self.tree_joint(joint)
-        if joint is self.model.topo.cut:
-            return self.cut_joint(joint)
+        if joint in self.model.topo.cuts:
+            return self.cut_joint(joint, self.model.loop_eqs[self.model.topo.cuts.index(joint)])
         return []
 
     def tree_joint(self, joint: Joint) -> list[Reading]:
@@ -138,8 +148,8 @@ class Reader:
             readings += point_readings(self.mech, self.start, joint.name, {b: anchor for b in pair})
         return readings
 
-    def cut_joint(self, joint: Joint) -> list[Reading]:
-        m, eq, item = self.m, self.model.loop_eq, joint_item(joint.name)
+    def cut_joint(self, joint: Joint, eq: int) -> list[Reading]:
+        m, item = self.m, joint_item(joint.name)
         anchors = dict(self.equality_anchors(eq))
         kind = "revolute" if m.eq_type[eq] == mujoco.mjtEq.mjEQ_CONNECT else mujoco.mjtEq(m.eq_type[eq]).name
         if not self.active(eq):
@@ -188,6 +198,8 @@ class Reader:
             row[dof] = 1.0
             found.append((f"dof_damping of joint {m.dof_jntid[dof]}", float(m.dof_damping[dof]), row))
         for t in np.flatnonzero(m.tendon_damping):
+            if t in self.element_tendons:
+                continue                         # a spring-damper's (`force`)
             row, adr = np.zeros(m.nv), m.tendon_adr[t]
             for k in range(adr, adr + m.tendon_num[t]):
                 if m.wrap_type[k] != mujoco.mjtWrap.mjWRAP_JOINT:
@@ -228,47 +240,111 @@ class Reader:
 
     # -- drive, scene, notes -----------------------------------------------------------
 
-    def drive(self) -> list[Reading]:
-        """φ(t) as MuJoCo will impose it: the joint equality q_drive =
-        c0 + c1·q_clock, the clock starting at q0, v0 under a constant
-        actuator force (its mass times a); θj − θi = sign·q_drive, with sign
-        +1 when the hinge's child is the joint's body_j."""
-        m, d, eq = self.m, self.d, self.model.drive_eq
+    def drive(self, k: int, spec: Drive) -> list[Reading]:
+        """φ(t) of drive k as MuJoCo will impose it: the joint equality
+        q_drive = c0 + c1·q_clock, its clock starting at q0, v0 under a
+        constant actuator force (its mass times a); θj − θi (or the slide s)
+        = sign·q_drive, with sign +1 when the joint's child is its body_j."""
+        m, d, eq, clock = self.m, self.d, self.model.drive_eqs[k], self.clock_jnts[k]
+        item = drive_item(self.mech, spec)
         note = "From the clock's start state, its constant actuator force / mass, and the joint equality."
         jnt_name = {jid: name for name, jid in self.model.jid.items()}
         drive_jnt, other = int(m.eq_obj1id[eq]), int(m.eq_obj2id[eq])
         joint = jnt_name.get(drive_jnt, f"MuJoCo joint {drive_jnt}")
-        text = joint if other == self.clock_jnt else f"{joint} (not tied to the clock)"
+        text = joint if other == clock else f"{joint} (not tied to its clock)"
         if not self.active(eq):
             text += " (inactive)"
-        readings = [Reading(DRIVE, "joint", text, "MuJoCo joint equality between the drive hinge and the clock")]
-        if joint not in self.model.jid or other != self.clock_jnt:
+        readings = [Reading(item, "joint", text, "MuJoCo joint equality between the driven joint and its clock")]
+        if joint not in self.model.jid or other != clock:
             return readings
         mech_joint = self.mech.joint(joint)
         sign = 1.0 if self.body_name[int(m.jnt_bodyid[drive_jnt])] == mech_joint.body_j else -1.0
         c = m.eq_data[eq, :5]
-        q0, v0 = d.qpos[m.jnt_qposadr[self.clock_jnt]], d.qvel[m.jnt_dofadr[self.clock_jnt]]
-        a = self.clock_acceleration()
+        q0, v0 = d.qpos[m.jnt_qposadr[clock]], d.qvel[m.jnt_dofadr[clock]]
+        a = self.clock_acceleration(clock)
         ts = float(np.asarray(self.start["t"]).reshape(-1)[0])
-        readings += [Reading(DRIVE, "phi0", float(sign * (c[0] + c[1] * (q0 - v0 * ts + 0.5 * a * ts * ts))), note),
-                     Reading(DRIVE, "omega0", float(sign * c[1] * (v0 - a * ts)), note),
-                     Reading(DRIVE, "alpha", float(sign * c[1] * a), note)]
+        readings += [Reading(item, "phi0", float(sign * (c[0] + c[1] * (q0 - v0 * ts + 0.5 * a * ts * ts))), note),
+                     Reading(item, "omega0", float(sign * c[1] * (v0 - a * ts)), note),
+                     Reading(item, "alpha", float(sign * c[1] * a), note)]
         if np.any(c[2:] != 0):
-            readings.append(Reading(DRIVE, "higher-order coupling", " ".join(f"{v:g}" for v in c[2:])))
+            readings.append(Reading(item, "higher-order coupling", " ".join(f"{v:g}" for v in c[2:])))
         return readings
 
-    def clock_acceleration(self) -> float:
+    def clock_acceleration(self, clock: int) -> float:
         m = self.m
         force = 0.0
         if not self.disabled(DSBL.mjDSBL_ACTUATION):
-            for act in self.clock_actuators():
+            for act in self.clock_actuators(clock):
                 force += m.actuator_biasprm[act, 0] * m.actuator_gear[act, 0]
-        return float(force / m.body_mass[self.clock_body] + self.gravity()[2])
+        return float(force / m.body_mass[m.jnt_bodyid[clock]] + self.gravity()[2])
 
-    def clock_actuators(self) -> list[int]:
-        m = self.m
+    def clock_actuators(self, clock: int | None = None) -> list[int]:
+        """The actuators on one clock's joint, or on any clock's."""
+        m, clocks = self.m, self.clock_jnts if clock is None else [clock]
         return [a for a in range(m.nu) if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-                and m.actuator_trnid[a, 0] == self.clock_jnt]
+                and m.actuator_trnid[a, 0] in clocks]
+
+    # -- force elements ----------------------------------------------------------------
+
+    def force(self, k: int, spec: SpringDamper | BodyTorque) -> list[Reading]:
+        return self.spring(k, spec) if isinstance(spec, SpringDamper) else self.torque(k, spec)
+
+    def spring(self, k: int, spec: SpringDamper) -> list[Reading]:
+        """A spatial tendon between two sites: its sites' bodies and world
+        positions in those bodies' frames, stiffness, spring length (a
+        deadband [ℓ0, ℓ0] is the plain spring; another is reported as the
+        pair) and damping, as MuJoCo's passive force uses them."""
+        m, d, t, item = self.m, self.d, self.model.tendon[k], force_item(spec)
+        adr, num = m.tendon_adr[t], m.tendon_num[t]
+        kinds = [int(m.wrap_type[w]) for w in range(adr, adr + num)]
+        if kinds != [mujoco.mjtWrap.mjWRAP_SITE] * 2:
+            return [Reading(item, "bodies", f"tendon {t} is not a straight line between two sites")]
+        sites = [int(m.wrap_objid[w]) for w in range(adr, adr + num)]
+        bodies = [self.body_name[int(m.site_bodyid[s])] for s in sites]
+        readings = [Reading(item, "bodies", "–".join(bodies), "MuJoCo spatial tendon between two sites")]
+        for end, body, site in zip("ab", bodies, sites):
+            local = to_body(self.start, body, d.site_xpos[site])
+            readings += [Reading(item, f"point {end} x", float(local[0])),
+                         Reading(item, f"point {end} y", float(local[1]))]
+        low, high = (float(v) for v in m.tendon_lengthspring[t])
+        off = self.disabled
+        stiffness = 0.0 if off(DSBL.mjDSBL_SPRING) else float(m.tendon_stiffness[t])
+        damping = 0.0 if off(DSBL.mjDSBL_DAMPER) else float(m.tendon_damping[t])
+        spring_note = "tendon_stiffness" + (" (springs disabled: mjDSBL_SPRING)" if off(DSBL.mjDSBL_SPRING) else "")
+        readings += [Reading(item, "stiffness", stiffness, spring_note),
+                     Reading(item, "free length", low if low == high else f"deadband {low:g}–{high:g}",
+                             "tendon_lengthspring"),
+                     Reading(item, "damping", damping, "tendon_damping")]
+        return readings
+
+    def torque(self, k: int, spec: BodyTorque) -> list[Reading]:
+        """A constant actuator force on a fixed tendon whose length is a
+        body's angle: the body is the one whose angular-velocity Jacobian
+        (MuJoCo's own, z row) is the tendon's row; the torque is the
+        actuator's constant bias force times its gear (no control gain, no
+        state-dependent bias)."""
+        m, item = self.m, force_item(spec)
+        if k not in self.model.actuator:
+            note = ("The body never turns (no hinge on its tree path): the torque does no work and MuJoCo gets no "
+                    "element for it; the read-out adds it to the couples of the joints that carry it.")
+            return [Reading(item, "body", spec.body, note, "note"), Reading(item, "torque", spec.torque, note, "note")]
+        act, t = self.model.actuator[k], self.model.tendon[k]
+        adr, num = m.tendon_adr[t], m.tendon_num[t]
+        row = np.zeros(m.nv)
+        for w in range(adr, adr + num):
+            if m.wrap_type[w] != mujoco.mjtWrap.mjWRAP_JOINT:
+                return [Reading(item, "body", f"tendon {t} is not over joints")]
+            row[m.jnt_dofadr[m.wrap_objid[w]]] += m.wrap_prm[w]
+        if m.actuator_trntype[act] != mujoco.mjtTrn.mjTRN_TENDON or m.actuator_trnid[act, 0] != t:
+            return [Reading(item, "body", f"actuator {act} does not act on tendon {t}")]
+        body = next((b.name for b in self.mech.bodies if np.array_equal(self.jacobian(b.name)[1][2], row)),
+                    "no body's angle")
+        constant = not np.any(m.actuator_gainprm[act] != 0) and not np.any(m.actuator_biasprm[act, 1:] != 0)
+        off = self.disabled(DSBL.mjDSBL_ACTUATION)
+        torque = 0.0 if off else float(m.actuator_biasprm[act, 0] * m.actuator_gear[act, 0])
+        note = "actuator bias force × gear on a fixed tendon over the body's path hinges"
+        return [Reading(item, "body", body, "the tendon row equals the body's angular-velocity Jacobian"),
+                Reading(item, "torque", torque if constant else "state-dependent", note)]
 
     def gravity(self) -> np.ndarray:
         return np.zeros(3) if self.disabled(DSBL.mjDSBL_GRAVITY) else np.array(self.m.opt.gravity)
@@ -281,7 +357,7 @@ class Reader:
         named = lambda field, what: [f"{what} {i}" for i in nonzero(getattr(m, field))]
         contacts_off = self.disabled(DSBL.mjDSBL_CONTACT) or (m.ngeom == 0 and m.nflex == 0)
         clock_acts = self.clock_actuators()
-        motors = [f"actuator {a}" for a in range(m.nu) if a not in clock_acts]
+        motors = [f"actuator {a}" for a in range(m.nu) if a not in clock_acts and a not in self.torque_actuators]
         motors += [f"actuator {a} has a control gain" for a in clock_acts if np.any(m.actuator_gainprm[a] != 0)]
         loads = named("body_gravcomp", "gravity compensation on body") + named("jnt_actgravcomp", "actuator gravcomp on joint")
         loads += [f"{field} at the start" for field in ("qfrc_applied", "xfrc_applied") if np.any(getattr(d, field))]
@@ -289,7 +365,8 @@ class Reader:
                   if np.any(m.actuator_biasprm[a, 1:] != 0)]
         loads += [f"{m.nplugin} plugins"] if m.nplugin else []
         tree_joints = set(self.model.jid.values())
-        constraints = [f"equality {e}" for e in range(m.neq) if e not in (self.model.loop_eq, self.model.drive_eq)]
+        constraints = [f"equality {e}" for e in range(m.neq)
+                       if e not in self.model.loop_eqs and e not in self.model.drive_eqs]
         constraints += [f"MuJoCo joint {j} ({mujoco.mjtJoint(m.jnt_type[j]).name})" for j in range(m.njnt)
                         if j not in tree_joints]
         constraints += [f"{m.nflex} flexes"] if m.nflex else []
@@ -307,10 +384,11 @@ class Reader:
                                                      + named("tendon_frictionloss", "frictionloss on tendon")),
                     "dof_frictionloss, tendon_frictionloss"),
             Reading(SCENE, "joint springs", listing(
-                named("jnt_stiffness", "stiffness on joint") + named("tendon_stiffness", "stiffness on tendon")
+                named("jnt_stiffness", "stiffness on joint")
+                + [f"stiffness on tendon {t}" for t in nonzero(m.tendon_stiffness) if t not in self.element_tendons]
                 + named("jnt_stiffnesspoly", "stiffnesspoly on joint")
                 + named("tendon_stiffnesspoly", "stiffnesspoly on tendon")),
-                "jnt_stiffness(poly), tendon_stiffness(poly)"),
+                "jnt_stiffness(poly), tendon_stiffness(poly); the spring-dampers' tendons are audited as forces"),
             Reading(SCENE, "added inertia (armature)", listing(
                 named("dof_armature", "armature on dof") + named("tendon_armature", "armature on tendon")
                 + named("actuator_armature", "armature on actuator")), "dof/tendon/actuator armature"),

@@ -6,14 +6,16 @@ Model layout (docs/engines.md, MuJoCo):
   the body it is joined to on the way from the ground, on a hinge (revolute)
   or slide (prismatic) joint. A prismatic joint between two moving bodies is
   simply a slide joint whose parent is not the world.
-- The loop is closed at one revolute pin other than the drive (the "cut"),
-  with an equality `connect` between a site on each side.
+- Each independent loop is closed at one revolute pin that is not driven
+  (the "cuts", `topology`), with an equality `connect` between a site on
+  each side.
 - Every body frame is the mechanism's body frame; in the zero configuration a
   child's frame has the rotation of its parent (hinge) or the fixed relative
   rotation of the prismatic pair, and the joint points coincide. So a hinge
   coordinate is the relative angle θchild − θparent and a slide coordinate is
   the travel of the joint point along the axis.
-- The drive is a heavy "clock" body on a z slide (out of the plane, so in-plane
+- Each drive (revolute or prismatic) has its own clock and joint equality,
+  as follows. The drive is a heavy "clock" body on a z slide (out of the plane, so in-plane
   gravity does not act on it) whose coordinate is φ(t): it starts at φ, φ̇
   and a constant actuator bias force gives it φ̈ = alpha; a joint equality
   with a linear polycoef ties the drive hinge to it. Nothing runs in Python
@@ -21,6 +23,11 @@ Model layout (docs/engines.md, MuJoCo):
 - Dampers are fixed tendons over the hinge/slide coordinates whose rate is the
   joint's relative rate (for the cut pin the path sums, ω_j − ω_i), so every
   damper is evaluated in every RK4 stage and none hides in a joint default.
+- A spring-damper is a spatial tendon between two sites with stiffness,
+  springlength [ℓ0, ℓ0] and damping: MuJoCo's passive force
+  −k·(ℓ − ℓ0) − c·ℓ̇ along the line. A body torque is an actuator with a
+  constant bias force (the torque, no control gain) on a fixed tendon over
+  the hinges of the body's tree path, whose rate is the body's ω.
 - No geoms, contacts disabled, autoreset disabled, radians, explicit
   inertials, no joint damping/armature/friction/stiffness/limits. `refsafe`
   is off so that solref is used as written (it would raise the drive's
@@ -37,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from mechval.kinematics import rotate, slide_motion
-from mechval.mechanism import GROUND, Joint, Mechanism
+from mechval.mechanism import GROUND, Joint, Mechanism, SpringDamper
 
 from .base import Unrepresentable
 from mechval.settings import Number, Numbers
@@ -89,10 +96,11 @@ class TreeJoint:
 
 @dataclass(frozen=True)
 class Topology:
-    """The spanning tree (parents before children) and the loop-closing pin."""
+    """The spanning tree (parents before children) and the loop-closing
+    pins, one per independent loop (`cuts`)."""
 
     tree: tuple[TreeJoint, ...]
-    cut: Joint
+    cuts: tuple[Joint, ...]
 
     def of_child(self, body: str) -> TreeJoint:
         return next(tj for tj in self.tree if tj.child == body)
@@ -119,21 +127,44 @@ class Topology:
 
 
 def topology(mech: Mechanism, motion0: Mapping[str, np.ndarray]) -> Topology:
-    """Cut the single loop at the last revolute pin (not the drive) that
-    leaves a spanning tree; `motion0` (one instant) fixes prismatic pairs'
-    relative rotation."""
-    for cut in reversed(mech.joints):
-        if cut.kind != "revolute" or cut.name == mech.drive.joint:
-            continue
-        tree = _spanning_tree(mech, cut, motion0)
-        if tree is not None:
-            return Topology(tree, cut)
-    raise ValueError(f"{mech.name}: MuJoCo adapter needs a single loop that can be closed at a "
-                     "revolute pin other than the drive")
+    """A spanning tree and one cut revolute pin per loop; `motion0` (one
+    instant) fixes prismatic pairs' relative rotation.
+
+    Joints enter the tree greedily (Kruskal): the drives first (a drive is
+    a joint equality on a tree coordinate), then the prismatic joints (a cut
+    can only be a pin: a `connect`), then the pins in the mechanism's
+    order, so that each loop is cut at its last pin; the tree is then laid
+    out breadth-first from the ground in the mechanism's joint order."""
+    drives = {d.joint for d in mech.drives}
+    rank = lambda j: (0 if j.name in drives else 1 if j.kind == "prismatic" else 2)
+    group = {name: name for name in [GROUND] + [b.name for b in mech.bodies]}
+
+    def root(name: str) -> str:
+        while group[name] != name:
+            name = group[name]
+        return name
+
+    cuts = []
+    for j in sorted(mech.joints, key=rank):      # stable: the file's order within each rank
+        a, b = root(j.body_i), root(j.body_j)
+        if a == b:
+            cuts.append(j)
+        else:
+            group[a] = b
+    for j in cuts:
+        if j.kind != "revolute" or j.name in drives:
+            raise Unrepresentable(f"joint.{j.name}", "MuJoCo adapter closes each loop at a revolute pin that is not "
+                                                     "driven, and this loop has none")
+    cut_names = {j.name for j in cuts}
+    tree = _spanning_tree(mech, [j for j in mech.joints if j.name not in cut_names], motion0)
+    if tree is None:
+        raise ValueError(f"{mech.name}: MuJoCo adapter found no spanning tree of the joints")
+    return Topology(tree, tuple(j for j in mech.joints if j.name in cut_names))
 
 
-def _spanning_tree(mech: Mechanism, cut: Joint, motion0: Mapping[str, np.ndarray]) -> tuple[TreeJoint, ...] | None:
-    remaining = [j for j in mech.joints if j is not cut]
+def _spanning_tree(mech: Mechanism, joints: list[Joint],
+                   motion0: Mapping[str, np.ndarray]) -> tuple[TreeJoint, ...] | None:
+    remaining = list(joints)
     reached, order, queue = {GROUND}, [], deque([GROUND])
     while queue:
         body = queue.popleft()
@@ -189,10 +220,45 @@ class Names:
         return f"{self.joint[joint.name]}i", f"{self.joint[joint.name]}j"
 
 
+def clock_name(k: int) -> str:
+    """The clock joint (and body, actuator) of drive k."""
+    return CLOCK if k == 0 else f"{CLOCK}{k}"
+
+
+def drive_name(k: int) -> str:
+    """The joint equality of drive k."""
+    return DRIVE if k == 0 else f"{DRIVE}{k}"
+
+
+def loop_name(k: int) -> str:
+    """The connect equality of cut pin k."""
+    return LOOP if k == 0 else f"{LOOP}{k}"
+
+
+def force_sites(k: int) -> tuple[str, str]:
+    """The sites of spring-damper k (force element k) on body_a and body_b."""
+    return f"f{k}a", f"f{k}b"
+
+
+def force_name(k: int) -> str:
+    """The tendon of force element k (and the actuator of a body torque)."""
+    return f"f{k}"
+
+
+def torque_coefficients(topo: Topology, body: str) -> dict[str, float]:
+    """Joint-coordinate coefficients of a body's angle θ: 1 on every hinge
+    of its tree path (slides do not turn). A constant torque τ on the body
+    is the generalized force τ on each of them (its Jacobian), which is
+    constant: one fixed tendon and a constant actuator force. A body that
+    never turns has none: its torque does no work and only loads the
+    couples of its joints, so MuJoCo gets no element for it."""
+    return {tj.joint.name: 1.0 for tj in topo.path(body) if tj.joint.kind == "revolute"}
+
+
 def damper_coefficients(topo: Topology, joint: Joint) -> dict[str, float]:
     """Joint-coordinate coefficients of the damper rate of `joint`: its own
     coordinate for a tree joint, ω_j − ω_i as path sums for the cut pin."""
-    if joint is not topo.cut:
+    if joint not in topo.cuts:
         return {joint.name: 1.0}
     coef: dict[str, float] = {}
     for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
@@ -303,15 +369,41 @@ def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], dt: float
     integrator = settings["integrator"]
     if integrator not in INTEGRATORS:
         raise ValueError(f"mujoco: integrator must be one of {INTEGRATORS}, got {integrator!r}")
-    drive = topo.of_joint(mech.drive.joint)
-    law = mech.drive.law
     clock_mass = float(settings["clock_mass"])
-    i_site, j_site = names.sites(topo.cut)
-    tendons = []
+    tendons, actuators, clocks, loops, drives = [], [], [], [], []
     for j in mech.damped_joints:
         coef = "".join(f'<joint joint="{names.joint[n]}" coef="{_vec(c)}"/>'
                        for n, c in damper_coefficients(topo, j).items())
         tendons.append(f'<fixed damping="{_vec(j.damping)}">{coef}</fixed>')
+    for k, force in enumerate(mech.forces):
+        if isinstance(force, SpringDamper):
+            # Passive tendon force −stiffness·(ℓ − springlength) − damping·ℓ̇
+            # along the line (a deadband [ℓ0, ℓ0] is the plain spring).
+            site_a, site_b = force_sites(k)
+            site_xml.setdefault(force.body_a, []).append(f'<site name="{site_a}" pos="{_vec(*force.point_a, 0)}"/>')
+            site_xml.setdefault(force.body_b, []).append(f'<site name="{site_b}" pos="{_vec(*force.point_b, 0)}"/>')
+            tendons.append(f'<spatial name="{force_name(k)}" stiffness="{_vec(force.stiffness)}" '
+                           f'springlength="{_vec(force.free_length, force.free_length)}" '
+                           f'damping="{_vec(force.damping)}"><site site="{site_a}"/><site site="{site_b}"/></spatial>')
+        elif torque_coefficients(topo, force.body):
+            coef = "".join(f'<joint joint="{names.joint[n]}" coef="{_vec(c)}"/>'
+                           for n, c in torque_coefficients(topo, force.body).items())
+            tendons.append(f'<fixed name="{force_name(k)}">{coef}</fixed>')
+            actuators.append(f'<general name="{force_name(k)}" tendon="{force_name(k)}" gainprm="0" biastype="affine" '
+                             f'biasprm="{_vec(force.torque)} 0 0" ctrllimited="false" forcelimited="false"/>')
+    for k, cut in enumerate(topo.cuts):
+        i_site, j_site = names.sites(cut)
+        loops.append(f'<connect name="{loop_name(k)}" site1="{j_site}" site2="{i_site}" solref="{solref}" '
+                     f'solimp="{solimp}"/>')
+    for k, drive_spec in enumerate(mech.drives):
+        drive, clock = topo.of_joint(drive_spec.joint), clock_name(k)
+        clocks.append(f'<body name="{clock}">\n      <joint name="{clock}" type="slide" axis="0 0 1"/>\n      '
+                      f'<inertial pos="0 0 0" mass="{_vec(clock_mass)}" diaginertia="1 1 1"/>\n    </body>')
+        drives.append(f'<joint name="{drive_name(k)}" joint1="{names.joint[drive.joint.name]}" joint2="{clock}"\n'
+                      f'           polycoef="0 {_vec(drive.sign)} 0 0 0" solref="{drive_solref}" solimp="{solimp}"/>')
+        actuators.insert(k, f'<general name="{clock}" joint="{clock}" gainprm="0" biastype="affine"\n'
+                            f'             biasprm="{_vec(clock_mass * drive_spec.law.alpha)} 0 0" ctrllimited="false" '
+                            'forcelimited="false"/>')
     roots = "".join(body_xml(tj) for tj in topo.tree if tj.parent == GROUND)
     return f"""<mujoco model="mechval">
   <compiler angle="radian" inertiafromgeom="false" autolimits="true" boundmass="0" boundinertia="0"/>
@@ -327,20 +419,15 @@ def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], dt: float
   <worldbody>
     {"".join(site_xml.get(GROUND, []))}
     {roots}
-    <body name="{CLOCK}">
-      <joint name="{CLOCK}" type="slide" axis="0 0 1"/>
-      <inertial pos="0 0 0" mass="{_vec(clock_mass)}" diaginertia="1 1 1"/>
-    </body>
+    {"".join(clocks)}
   </worldbody>
   <equality>
-    <connect name="{LOOP}" site1="{j_site}" site2="{i_site}" solref="{solref}" solimp="{solimp}"/>
-    <joint name="{DRIVE}" joint1="{names.joint[drive.joint.name]}" joint2="{CLOCK}"
-           polycoef="0 {_vec(drive.sign)} 0 0 0" solref="{drive_solref}" solimp="{solimp}"/>
+    {"".join(loops)}
+    {"".join(drives)}
   </equality>
   <tendon>{"".join(tendons)}</tendon>
   <actuator>
-    <general name="{CLOCK}" joint="{CLOCK}" gainprm="0" biastype="affine"
-             biasprm="{_vec(clock_mass * law.alpha)} 0 0" ctrllimited="false" forcelimited="false"/>
+    {"".join(actuators)}
   </actuator>
 </mujoco>"""
 
@@ -364,6 +451,7 @@ def coordinates(mech: Mechanism, topo: Topology,
             continue
         slide = slide_motion(motion, j)
         out[j.name] = tuple(tj.sign * slide[q] for q in ("s", "v", "a"))
-    law = mech.drive.law
-    out[CLOCK] = (law.angle(t), law.rate(t), law.acceleration(t))
+    for k, drive in enumerate(mech.drives):
+        law = drive.law
+        out[clock_name(k)] = (law.angle(t), law.rate(t), law.acceleration(t))
     return out

@@ -248,7 +248,7 @@ def forward_states(model: Model, count: int) -> np.ndarray:
 def test_read_out_is_the_native_data(engine, name, monkeypatch):
     """The read-out's one-piece copy holds each mjData field bit for bit
     (across its blocks: 2 samples per block here), and the cut force and
-    drive torque it reads from cfrc_ext and qfrc_constraint are the
+    drive torque it reads from efc_force and qfrc_constraint are the
     equalities' efc_force rows bit for bit."""
     from mechval.engines import mujoco_snapshot
     from mechval.engines.mujoco import FULL, RECORDED
@@ -272,8 +272,8 @@ def test_read_out_is_the_native_data(engine, name, monkeypatch):
     fields, efc = snapshot.fields(), np.array(efc)
     for field in RECORDED:
         np.testing.assert_array_equal(fields[field], np.array(expected[field]), err_msg=field)
-    np.testing.assert_array_equal(model.cut_force(fields), efc[:, :2])
-    np.testing.assert_array_equal(model.drive_torque(fields), model.drive.sign * efc[:, 2])
+    np.testing.assert_array_equal(model.loop_rows(), rows(model.loop_eq))
+    np.testing.assert_array_equal(model.drive_efforts(fields)[:, 0], model.drive.sign * efc[:, 2])
 
 
 def test_snapshot_refuses_fields_outside_the_data_buffer(engine):

@@ -1,7 +1,7 @@
 """Audit of the assembled Exudyn model (see `mechval.audit`).
 
 The model and the solver settings are built by the adapter's own
-`exudyn.prepare` (`exudyn_model.build_model`, `simulation_settings`) and
+`exudyn_run.prepare` (`exudyn_model.build_model`, `simulation_settings`) and
 read back with `GetNode`/`GetObject`/`GetMarker`/`GetLoad`. Mechanism bodies
 are found through the model's sensors (`ExudynModel.body_sensors` → node →
 the rigid body on it), joints through `joint_sensors`, the drive through
@@ -34,7 +34,7 @@ from mechval.audit import (SCENE, Reading, audit, axis_readings, body_item, bodi
 from mechval.kinematics import rotate
 from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
 
-from .exudyn import prepare
+from .exudyn_run import prepare
 from .exudyn_model import ExudynModel
 
 ENGINE = "exudyn"

@@ -36,7 +36,7 @@ from mechval.audit import (SCENE, Reading, audit, axis_readings, bodies_text, bo
                            force_item, inertia_readings, joint_item, listing, point_readings, to_body)
 from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
 
-from .mujoco import Model
+from .mujoco_run import Model
 
 DSBL, ENBL = mujoco.mjtDisableBit, mujoco.mjtEnableBit
 KINDS = {mujoco.mjtJoint.mjJNT_HINGE: "revolute", mujoco.mjtJoint.mjJNT_SLIDE: "prismatic"}

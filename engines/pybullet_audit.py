@@ -1,7 +1,7 @@
 """Audit of the built PyBullet model (see `mechval.audit`).
 
 The model is built by the adapter's own `pybullet_model.build`, with the
-step and start of `pybullet.step_plan`, in the state a run starts from;
+step and start of `pybullet_run.step_plan`, in the state a run starts from;
 mechanism bodies, tree joints and loop constraints are found through the
 model's own maps (`Model.bodies`, `tree_joints`, `constraints`).
 
@@ -41,7 +41,7 @@ from mechval.audit import (SCENE, Reading, audit, axis_readings, bodies_text, bo
 from mechval.kinematics import slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism
 
-from .pybullet import Stepper, step_plan
+from .pybullet_run import Stepper, step_plan
 from .pybullet_model import BodyHandle, Model, build, p
 
 ENGINE = "pybullet"

@@ -31,7 +31,8 @@ except ImportError as exc:
     pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"mujoco cannot be imported ({exc})")]
 else:
     pytestmark = pytest.mark.engine     # every test here runs MuJoCo
-    from mechval.engines.mujoco import Model, MujocoAdapter
+    from mechval.engines.mujoco import MujocoAdapter
+    from mechval.engines.mujoco_run import Model
 
 FORCE_CLASSES = ("force", "torque")
 #: Inverse mode evaluates the same equations as the reference at the same
@@ -251,7 +252,7 @@ def test_read_out_is_the_native_data(engine, name, monkeypatch):
     drive torque it reads from efc_force and qfrc_constraint are the
     equalities' efc_force rows bit for bit."""
     from mechval.engines import mujoco_snapshot
-    from mechval.engines.mujoco import FULL, RECORDED
+    from mechval.engines.mujoco_run import FULL, RECORDED
     from mechval.engines.mujoco_snapshot import Snapshot
     monkeypatch.setattr(mujoco_snapshot, "CHUNK", 2)
     model, _ = built_model(engine, builtin_scenario(name))
@@ -303,7 +304,7 @@ def test_overlapping_runs_share_the_warning_silencer(engine):
     """Threads running at once (a Dask worker with several threads) install
     the handler once and restore MuJoCo's default only when the last
     leaves, whatever the order."""
-    from mechval.engines.mujoco import warnings_silenced
+    from mechval.engines.mujoco_run import warnings_silenced
     first, second = warnings_silenced, warnings_silenced
     first.__enter__()
     second.__enter__()

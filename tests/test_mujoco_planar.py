@@ -427,7 +427,8 @@ def test_the_audit_reads_the_new_elements_back(name, element, quantity):
     """A changed value in the compiled model (not in the Mechanism) shows
     as "differs" in that element's row: the audit reads MuJoCo's numbers."""
     from mechval.audit import audit, expected_model
-    from mechval.engines.mujoco import Model, MujocoAdapter
+    from mechval.engines.mujoco import MujocoAdapter
+    from mechval.engines.mujoco_run import Model
     from mechval.engines.mujoco_audit import Reader
     scenario = scene(name)
     mechanism = build_mechanism(scenario)

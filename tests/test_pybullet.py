@@ -28,7 +28,7 @@ except ImportError as exc:
     pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"pybullet cannot be imported ({exc})")]
 else:
     pytestmark = pytest.mark.engine     # every test here runs PyBullet
-    from mechval.engines.pybullet import run_model
+    from mechval.engines.pybullet_run import run_model
     from mechval.engines.pybullet_model import NO_CAP, build
 
 #: Forces and torque of the short seed at the default setting (measured

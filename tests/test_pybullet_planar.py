@@ -4,7 +4,7 @@ Each scene is compared with the general reference at the default
 tolerances (`mechval.compare.compare`, as tests/contract.py does); short
 runs (≤ 1 s, ≤ 101 samples) keep the tests fast.
 
-How PyBullet builds each feature (engines/pybullet.py, pybullet_model.py):
+How PyBullet builds each feature (engines/pybullet_run.py, pybullet_model.py):
 every drive is a position-controlled multibody joint (a leaf of the split
 layout), its effort read from the joint's applied motor torque or force;
 spring-dampers and body torques are external loads set before every step

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import time
 
-from mechval.engines.exudyn import ExudynAdapter, prepare
+from mechval.engines.exudyn import ExudynAdapter
+from mechval.engines.exudyn_run import prepare
 from mechval.engines.exudyn_model import SOLVERS
 from mechval.linkages import build_mechanism
 from mechval.scenarios import load

@@ -19,7 +19,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mechval.engines.pybullet import PybulletAdapter, run_model   # noqa: E402
+from mechval.engines.pybullet import PybulletAdapter   # noqa: E402
+from mechval.engines.pybullet_run import run_model   # noqa: E402
 from mechval.linkages import build_mechanism                       # noqa: E402
 from test_pybullet_planar import SCENES, scene                      # noqa: E402
 

@@ -15,7 +15,9 @@ The rule (reference in the expected position):
   of a zero signal means nothing.
 Values an engine marks as missing (with a reason) are left out of the
 error and counted; a signal with no value at all is "missing"; NaN or inf
-without a reason fails.
+without a reason fails. A signal the reference itself reports missing
+(a reaction left statically indeterminate by redundant constraints) is
+"missing" with the reference's reason, whatever the engine reports.
 
 Run health (mechval.health) is judged in the same records, class "health":
 a loop-closure gap beyond the position tolerance or a drive error beyond
@@ -54,6 +56,8 @@ def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario:
     names = [c for c in reference.frame.columns if c != "t"]
     class_peak: dict[str, float] = {}
     for name in names:
+        if name in reference.missing:
+            continue
         cls = SIGNAL_CLASS[name]
         class_peak[cls] = max(class_peak.get(cls, 0.0), float(np.abs(reference[name]).max()))
     rows = []
@@ -61,8 +65,8 @@ def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario:
         cls = SIGNAL_CLASS[name]
         ref = reference[name]
         peak = float(np.abs(ref).max())
-        if peak <= ZERO_IN_THEORY * class_peak[cls]:
-            peak = class_peak[cls]
+        if peak <= ZERO_IN_THEORY * class_peak.get(cls, 0.0):
+            peak = class_peak.get(cls, peak)
         tol = tolerance[cls]
         bound = tol * peak if tolerance.is_relative(cls) else tol
         values = result[name] if name in result.frame else np.full(len(t), np.nan)
@@ -70,7 +74,14 @@ def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario:
         bad = ~np.isfinite(values)
         row = dict(scenario=scenario, engine=engine, setting=setting, signal=name, **{"class": cls},
                    peak=peak, tolerance=tol, bound=bound, missing=int(bad.sum()), reason=reason)
-        if bad.all():
+        if name in reference.missing:
+            # The reference has no value to compare with (e.g. a reaction
+            # that redundant constraints leave statically indeterminate):
+            # whatever the engine reports is never judged.
+            row.update(peak=np.nan, bound=np.nan, max_error=np.nan, t_max=np.nan, rms_error=np.nan,
+                       relative_error=np.nan, ratio=np.nan, verdict="missing",
+                       reason=f"reference: {reference.missing[name]}")
+        elif bad.all():
             row.update(max_error=np.nan, t_max=np.nan, rms_error=np.nan, relative_error=np.nan,
                        ratio=np.nan, verdict="fail" if not reason else "missing",
                        reason=reason or "no finite value")

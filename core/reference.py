@@ -97,4 +97,7 @@ def simulate_reference(scenario: Scenario) -> Signals:
     """
     mechanism = build_mechanism(scenario)
     raw = ReferenceAdapter().run(mechanism, scenario.time.t, {})
-    return canonical_signals(mechanism, raw.frame, ReferenceAdapter.name, __version__, {}, info=raw.info)
+    # Its missing values keep their reasons (a reaction redundant
+    # constraints leave indeterminate), so that they are never compared.
+    return canonical_signals(mechanism, raw.frame, ReferenceAdapter.name, __version__, {}, raw.missing,
+                             info=raw.info)

@@ -18,6 +18,15 @@ def builtin_scenario(name: str):
     return load(name)
 
 
+#: Built-ins of the four closed-form kinds (each has a planar twin); the
+#: planar built-ins have no closed form (tests/test_new_scenes.py).
+CLOSED_FORM = [name for name in BUILTIN if builtin_scenario(name).mechanism != "planar"]
+#: Built-in × engine pairs the engine cannot run at all, with the error it
+#: stops with (the failure is the finding, see the scene's file; the tests
+#: fail when the engine starts to run it, so that the note gets updated).
+CANNOT_RUN = {("exudyn", "parallelogram-double-fourbar"): "Jacobian seems to be singular"}
+
+
 @functools.lru_cache(maxsize=None)
 def builtin_reference(name: str):
     return simulate_reference(builtin_scenario(name))

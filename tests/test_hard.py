@@ -10,7 +10,7 @@ import dataclasses
 
 import pytest
 
-from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
+from conftest import BUILTIN, CANNOT_RUN, builtin_reference, builtin_scenario, engine_or_skip
 from mechval.compare import compare, format_records, passed
 from mechval.engines.registry import ENGINE_NAMES
 from mechval.reference import simulate_reference
@@ -49,12 +49,18 @@ def test_hard_scenarios_exist():
 def test_engine_stable_and_accurate(engine_name, scenario_name, record_comparison):
     engine = engine_or_skip(engine_name)
     scenario, reference = hard_case(scenario_name)
+    if (engine_name, scenario_name) in CANNOT_RUN:
+        with pytest.raises(Exception, match=CANNOT_RUN[engine_name, scenario_name]):
+            simulate(scenario, engine)
+        return
     result = simulate(scenario, engine)
     records = compare(reference, result, scenario.tolerance_for(engine_name), scenario=scenario.name)
     record_comparison(scenario, engine_name, result, records)
     health = records[records["class"] == "health"].set_index("signal")
     assert health.loc["health.nonfinite", "max_error"] == 0, "\n" + format_records(records)
-    assert health.loc["health.assembly_flip", "max_error"] == 0, "\n" + format_records(records)
+    # Planar files have no assembly-branch check: the row is "missing" there.
+    flip = health.loc["health.assembly_flip"]
+    assert flip["verdict"] == "missing" or flip["max_error"] == 0, "\n" + format_records(records)
     assert passed(records), "\n" + format_records(records)
 
 

@@ -23,7 +23,7 @@ import pytest
 
 import andrews as A
 import planar_mechanisms as pm
-from conftest import builtin_scenario
+from conftest import CLOSED_FORM, builtin_scenario
 from mechval.drive import DriveLaw
 from mechval.fourbar import position as fourbar_position
 from mechval.health import joint_gaps, slide_rate
@@ -105,7 +105,7 @@ def cross_check(name: str, span: float | None) -> None:
     assert (solution.structure.mobility, solution.structure.redundant) == (1, 0)
 
 
-@pytest.mark.parametrize("name", builtin_names())
+@pytest.mark.parametrize("name", CLOSED_FORM)
 def test_agrees_with_the_closed_form_on_every_builtin(name):
     cross_check(name, DEFAULT_SPAN.get(name))
 

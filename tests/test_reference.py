@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import BUILTIN, builtin_scenario
+from conftest import CLOSED_FORM, builtin_scenario
 from mechval.health import power_balance
 from mechval.kinematics import joint_gaps, point_motion
 from mechval.linkages import build_mechanism
@@ -29,7 +29,7 @@ BOTH_KINDS_VARIANTS = [
                  mass={"conrod": {"mass": 2.0, "com": 0.1, "izz": 0.05}}),
     slider_crank(geometry={"offset": -0.03}, effects={"damping": {"O2": 0.1, "A": 0.1, "B": 0.2, "guide": 3.0}}),
 ]
-SCENES = [parse(d, f"variant-{k}") for k, d in enumerate(BOTH_KINDS_VARIANTS)] + [builtin_scenario(n) for n in BUILTIN]
+SCENES = [parse(d, f"variant-{k}") for k, d in enumerate(BOTH_KINDS_VARIANTS)] + [builtin_scenario(n) for n in CLOSED_FORM]
 IDS = [s.source.name if s.source else s.name for s in SCENES]
 
 

@@ -27,15 +27,15 @@ from scales import size
 from test_planar_solver import BOUND, power_terms
 
 NEW = ("watt-six-bar", "stephenson-six-bar", "jansen-leg", "five-bar-two-drives", "slider-driven-slider-crank",
-       "parallelogram-double-fourbar", "andrews-squeezer")
+       "planar-extra/parallelogram-double-fourbar", "andrews-squeezer")
 #: Words of each description that name its source or say there is none.
 SOURCES = {
     "watt-six-bar": "no published source", "stephenson-six-bar": "no published source",
     "jansen-leg": "holy numbers", "five-bar-two-drives": "no published source",
-    "slider-driven-slider-crank": "Norton", "parallelogram-double-fourbar": "Grübler",
+    "slider-driven-slider-crank": "Norton", "planar-extra/parallelogram-double-fourbar": "Grübler",
     "andrews-squeezer": "Test Set for IVP Solvers",
 }
-REDUNDANT = "parallelogram-double-fourbar"
+REDUNDANT = "planar-extra/parallelogram-double-fourbar"
 
 
 def solve(name: str):
@@ -46,9 +46,13 @@ def solve(name: str):
 
 @pytest.mark.parametrize("name", NEW)
 def test_is_a_builtin_that_names_its_source(name):
-    assert name in builtin_names()
+    """Shipped, and named by its source. The parallelogram lives in
+    scenarios/planar-extra/, outside the default run: Exudyn cannot run
+    redundant constraints (its Jacobian is singular), a measured limit
+    that would fail every `make run`."""
+    assert (name in builtin_names()) == (name != REDUNDANT)
     scenario = builtin_scenario(name)
-    assert scenario.name == name and SOURCES[name] in scenario.description
+    assert scenario.name == name.split("/")[-1] and SOURCES[name] in scenario.description
 
 
 @pytest.mark.parametrize("name", NEW)

@@ -217,6 +217,14 @@ class Mechanism:
         return tuple(d for d in (self.drive, *self.extra_drives) if d is not None)
 
     @property
+    def forward_dynamics(self) -> bool:
+        """True when the motion is not all prescribed (torque laws, free
+        degrees of freedom or stated initial values): it is then integrated
+        from the consistent initial state at the first instant
+        (`mechval.dynamics`), and an engine starts there with no pre-roll."""
+        return self.drive is None or bool(self.torque_drives) or bool(self.initial_values)
+
+    @property
     def has_gravity(self) -> bool:
         return any(g != 0.0 for g in self.gravity)
 

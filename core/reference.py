@@ -73,7 +73,7 @@ class ReferenceAdapter(EngineAdapter):
         return {}
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
-        if mechanism.drive is None or mechanism.torque_drives or mechanism.initial_values:   # forward dynamics
+        if mechanism.forward_dynamics:
             try:
                 solution = raw_dynamics(mechanism, times)
             except MechanismError as exc:

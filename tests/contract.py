@@ -17,14 +17,17 @@ class attribute, and the tests that need one skip with that reason.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import ClassVar
 
 import numpy as np
 import pytest
 
+import dynamic_mechanisms as dm
 from conftest import engine_or_skip
 from mechval.audit import failures, format_audit
 from mechval.compare import HEALTH_BOUNDS, compare
+from mechval.dynamics import raw_dynamics
 from mechval.linkages import build_mechanism
 from mechval.reference import simulate_reference
 from mechval.scenario import ScenarioError
@@ -51,6 +54,38 @@ FREE_LOOP = fourbar(effects=None, time={"end": 1.0, "samples": 101}, name="contr
 DAMPED_LOOP = fourbar(effects={"gravity": [0.0, -G], "damping": {"O2": 0.5, "A": 0.2, "B": 0.3, "O4": 0.4}},
                       time={"end": 1.0, "samples": 101}, name="contract-fourbar-damped")
 MECHANISMS = pytest.mark.parametrize("data", [CLOSED_LOOP, MOVING_SLIDE], ids=["closed-loop", "moving-slide"])
+#: Torque-driven and free mechanisms (tests/dynamic_mechanisms.py) and how
+#: long each runs (s): a pendulum and a crank under a torque law with closed
+#: forms, the seed four-bar falling from rest, a motored slider-crank with a
+#: spring-damper, joint dampers and a body torque.
+DYNAMIC = {"pendulum": 2.0, "spinning-crank": 1.0, "free-fourbar": 2.0, "motored-slider-crank": 1.0}
+#: The default tolerances of a scene (docs/scenario-format.md): angle (rad)
+#: and position (m) absolute, force relative to the column's peak.
+ANGLE, POSITION, FORCE = 1e-3, 1e-4, 1e-2
+
+
+def dynamic_mechanism(name: str):
+    """The mechanism of a dynamic case, carrying its assembly pose and
+    initial values (all an adapter may look at), and its output instants."""
+    case = dm.CASES[name]()
+    mech = dataclasses.replace(case.mech, assembly_pose=case.pose)
+    return mech, np.linspace(0.0, DYNAMIC[name], 101)
+
+
+def dynamic_errors(mech, reference, result) -> dict[str, float]:
+    """Per raw column, the error as a fraction of its default bound (> 1
+    fails): body angles and positions absolute, reactions and efforts
+    relative to the reference column's peak."""
+    ratios = {}
+    for body in mech.bodies:
+        for q, bound in (("theta", ANGLE), ("x", POSITION), ("y", POSITION)):
+            column = f"{body.name}.{q}"
+            ratios[column] = float(np.max(np.abs(result[column] - reference[column]))) / bound
+    for column in mech.reaction_columns():
+        peak = float(np.max(np.abs(reference[column])))
+        if peak > 0:
+            ratios[column] = float(np.max(np.abs(result[column] - reference[column]))) / (FORCE * peak)
+    return ratios
 
 
 @pytest.mark.engine
@@ -232,3 +267,40 @@ class AdapterContract:
         bound = scenario.tolerance_for(self.engine)[HEALTH_BOUNDS["power_residual"]]
         assert float(np.max(result.health["power_residual"])) <= bound
 
+
+    # -- torque-driven and free motion -------------------------------------------
+
+    def run_dynamic(self, adapter, name: str):
+        mech, times = dynamic_mechanism(name)
+        raw = adapter.run(mech, times, adapter.default_settings(mech, times))
+        return mech, times, raw.frame
+
+    @pytest.mark.parametrize("name", list(DYNAMIC))
+    def test_follows_the_forward_dynamics_reference(self, adapter, name):
+        """From the same consistent initial state at t = 0 (no pre-roll, no
+        prescribed motion), the engine integrates the mechanism's own
+        dynamics; body angles, positions, reactions and efforts stay within
+        the default tolerances of the forward-dynamics reference
+        (`mechval.dynamics`, DOP853 at 1e-10) at the engine's default
+        setting."""
+        mech, times, frame = self.run_dynamic(adapter, name)
+        reference = raw_dynamics(mech, times).frame
+        ratios = dynamic_errors(mech, reference, frame)
+        assert {column: ratio for column, ratio in ratios.items() if not ratio <= 1.0} == {}
+
+    def test_a_torque_law_is_an_applied_joint_torque(self, adapter):
+        """The crank under T(t) = T0 + a·sin(2πft + φ) (tests/dynamic_mechanisms.py
+        SPIN): its effort column is the law itself, not a servo's
+        response, and its motion follows the closed form."""
+        mech, times, frame = self.run_dynamic(adapter, "spinning-crank")
+        law = mech.torque_drives[0]
+        np.testing.assert_allclose(frame[f"{law.name}.T"], law.value(times), rtol=1e-12, atol=1e-12)
+        theta, _ = dm.spinning_exact(times)
+        assert float(np.max(np.abs(frame["crank.theta"] - theta))) <= ANGLE
+
+    def test_a_free_pendulum_swings_as_its_closed_form(self, adapter):
+        """A bar released from rest 2.5 rad from hanging: its angle against
+        the elliptic-function closed form (dm.pendulum_exact)."""
+        mech, times, frame = self.run_dynamic(adapter, "pendulum")
+        theta, _ = dm.pendulum_exact(times)
+        assert float(np.max(np.abs(frame["bar.theta"] - theta))) <= ANGLE

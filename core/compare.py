@@ -165,8 +165,9 @@ def _health_rows(health: pd.DataFrame, tolerance: Tolerance, ids: dict) -> list[
         bound = tolerance[cls] if cls else 0.0
         row.update(tolerance=bound, bound=bound)
         if name not in health:
-            rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
-                             reason=NOT_APPLICABLE.get(name, "not available for this mechanism")))
+            if name not in NOT_APPLICABLE:      # else the measure does not apply: no row
+                rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
+                                 reason="not available for this mechanism"))
             continue
         values = health[name].to_numpy(dtype=float)
         if not np.isfinite(values).any():

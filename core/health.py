@@ -55,7 +55,8 @@ HEALTH_COLUMNS = ("nonfinite", "gap", "drive_error", "assembly_flip", "power_res
                   "energy_drift", "energy_balance")
 #: Series the report draws besides them (J; energy_quadrature: relative).
 ENERGY_SERIES = ("energy", "work", "energy_quadrature")
-#: Why a measure is absent for a mechanism (mechval.compare's reason).
+#: Measures that do not apply to every mechanism, and why (a mechanism
+#: they do not apply to has no such column, and the comparison no row).
 NOT_APPLICABLE = {
     "drive_error": "no prescribed drive",
     "energy_drift": "work is done on the mechanism (drives, torque laws, body torques or dampers): "

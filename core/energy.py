@@ -46,19 +46,28 @@ def _stretch(raw, spring: SpringDamper) -> tuple[np.ndarray, np.ndarray]:
     return length, (dx * (b["vx"] - a["vx"]) + dy * (b["vy"] - a["vy"])) / length
 
 
-def potential_energy(mech: Mechanism, raw) -> np.ndarray:
-    """Gravity's −Σ m·g·r_G plus the springs' ½·k·(ℓ − ℓ0)² (J); zero for
-    gravity at the world origin."""
+def _potential(mech: Mechanism, raw) -> tuple[np.ndarray, np.ndarray]:
+    """The potential energy V (J) and its rate dV/dt (W) at each sample:
+    gravity's −Σ m·g·r_G and the springs' ½·k·(ℓ − ℓ0)², and their rates."""
     gx, gy = mech.gravity
-    energy = 0.0
+    energy = rate = 0.0
     for body in mech.bodies:
         G = point_motion(raw, body.name, body.com)
         energy = energy - body.mass * (gx * G["x"] + gy * G["y"])
+        rate = rate - body.mass * (gx * G["vx"] + gy * G["vy"])
     for element in mech.forces:
         if isinstance(element, SpringDamper):
-            length, _ = _stretch(raw, element)
+            length, stretch = _stretch(raw, element)
             energy = energy + 0.5 * element.stiffness * (length - element.free_length) ** 2
-    return energy + np.zeros(len(raw["t"]))
+            rate = rate + element.stiffness * (length - element.free_length) * stretch
+    zero = np.zeros(len(raw["t"]))
+    return energy + zero, rate + zero
+
+
+def potential_energy(mech: Mechanism, raw) -> np.ndarray:
+    """Gravity's −Σ m·g·r_G plus the springs' ½·k·(ℓ − ℓ0)² (J); zero for
+    gravity at the world origin."""
+    return _potential(mech, raw)[0]
 
 
 def joint_rate(raw, joint: Joint) -> np.ndarray:
@@ -82,16 +91,7 @@ def kinetic_rate(mech: Mechanism, raw) -> np.ndarray:
 def energy_rate(mech: Mechanism, raw) -> np.ndarray:
     """dE/dt at each sample (W), from the velocities and accelerations:
     dK/dt − Σ m·g·v_G + Σ springs k·(ℓ − ℓ0)·dℓ/dt."""
-    gx, gy = mech.gravity
-    rate = kinetic_rate(mech, raw)
-    for body in mech.bodies:
-        G = point_motion(raw, body.name, body.com)
-        rate = rate - body.mass * (gx * G["vx"] + gy * G["vy"])
-    for element in mech.forces:
-        if isinstance(element, SpringDamper):
-            length, stretch = _stretch(raw, element)
-            rate = rate + element.stiffness * (length - element.free_length) * stretch
-    return rate
+    return kinetic_rate(mech, raw) + _potential(mech, raw)[1]
 
 
 def input_power(mech: Mechanism, raw) -> np.ndarray:

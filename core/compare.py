@@ -172,7 +172,8 @@ def _health_rows(health: pd.DataFrame, tolerance: Tolerance, ids: dict) -> list[
         values = health[name].to_numpy(dtype=float)
         if not np.isfinite(values).any():
             rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
-                             reason="the engine does not report the signals it needs"))
+                             reason="undefined for this run: the engine does not report the signals it needs, "
+                                    "or nothing moves (no power or energy to scale it by)"))
             continue
         row.update(error_growth(t, values))
         quadrature = float(np.nanmax(health["energy_quadrature"])) if name == "energy_balance" else 0.0

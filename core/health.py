@@ -142,6 +142,8 @@ def health(mech: Mechanism, raw: pd.DataFrame, missing: Mapping[str, str] = ()) 
     peak = float(np.nanmax(np.abs(power)))
     if not (mech.drives or mech.torque_drives):
         peak = float(np.nanmax(np.abs(kinetic_rate(mech, raw))))
-    result["power_residual"] = np.abs(power - rate) / max(peak, 1e-300)
+    # At rest (a free scene released at an equilibrium) there is no power to
+    # scale by: the residual is then undefined, not rounding over 1e-300.
+    result["power_residual"] = np.abs(power - rate) / (peak if peak > 0 or mech.drives else np.nan)
     result.update(energy_health(mech, raw))
     return pd.DataFrame(result)

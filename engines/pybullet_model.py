@@ -262,14 +262,15 @@ def start_state(mechanism: Mechanism, t_start: float, timestep: float) -> tuple[
     return pose, rates
 
 
-def build(mechanism: Mechanism, timestep: float, layout: str, t_start: float) -> Model:
+def build(mechanism: Mechanism, timestep: float, layout: str, t_start: float,
+          state: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> Model:
     """Connect a DIRECT client and build the model in the reference state of
-    t_start (`start_state`)."""
+    t_start (`start_state`), or in `state` (poses, rates) when given."""
     client = p.connect(p.DIRECT)
     try:
         with native_output_silenced():      # "switched solver" notices from C
             configure_solver(client, timestep, mechanism.gravity)
-        pose, rates = start_state(mechanism, t_start, timestep)
+        pose, rates = state if state is not None else start_state(mechanism, t_start, timestep)
         model = Model(client, timestep, BodyHandle(-1, -1), {}, {}, {},
                       {b.name: b.com for b in mechanism.bodies}, pose)
         for root, links in plan_layout(mechanism, layout).items():

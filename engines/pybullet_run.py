@@ -6,6 +6,7 @@ and the model audit (`pybullet_audit`) both build on this module.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -18,7 +19,7 @@ from mechval.kinematics import joint_gaps, rigid_velocity, rotate_scalar, slide_
 from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyTorque, Drive, Mechanism, SpringDamper, TorqueLaw
 
 from .base import RawRun, RunInfo, Unrepresentable
-from .pybullet_model import NO_CAP, BodyHandle, Model, TreeJoint, build, p   # p: pybullet, imported quietly there
+from .pybullet_model import NO_CAP, Model, TreeJoint, build, p, start_state   # p: pybullet, imported quietly there
 from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_slides, slide_reaction
 
 #: A body's reading: origin x, y (m), wrapped angle (rad), origin vx, vy
@@ -26,6 +27,9 @@ from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_sl
 BodyState = tuple[float, float, float, float, float, float]
 AT_REST: BodyState = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 PREROLL = "preroll_steps"
+#: The largest rate (rad/s, m/s) of `steady_start`'s probe: small enough
+#: that the engine's velocity-product terms (∝ rate²·dt) are negligible.
+PROBE_RATE = 1e-3
 #: Why a torque-driven or free run refuses a pre-roll, and what it does instead.
 FREE_PREROLL = ("a torque-driven or free run starts at the first instant from the reference's consistent "
                 "initial state: there is no prescribed motion to pre-roll along (set 0)")
@@ -42,7 +46,9 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     if preroll and mechanism.forward_dynamics:
         raise Unrepresentable(f"engines.pybullet.{PREROLL}", FREE_PREROLL)
     started = time.perf_counter()
-    model = build(mechanism, dt, settings["layout"], float(times[0]) - preroll * dt)
+    t_start = float(times[0]) - preroll * dt
+    state = steady_start(mechanism, dt, settings["layout"], t_start) if mechanism.forward_dynamics else None
+    model = build(mechanism, dt, settings["layout"], t_start, state)
     try:
         if prepare:
             prepare(model)
@@ -76,6 +82,57 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     if slides and preroll == 0:
         missing.update({f"{j.name}.{q}": NO_EARLIER_STEP for j in slides for q in ("Fx", "Fy", "M")})
     return RawRun(frame, missing, RunInfo.of(info))
+
+
+def steady_start(mechanism: Mechanism, dt: float, layout: str, t0: float) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The reference's initial state (`start_state`) with the mid-step
+    rates PyBullet's step carries there, so that its first step's
+    constraint forces are not a start-up transient.
+
+    Why: PyBullet makes each step's new velocity v_n+½ satisfy the
+    constraints at the step's start (J(q_n)·v_n+½ = −C(q_n)/dt, erp 1),
+    so its closed loops ride with a steady gap C ≈ ½·dt²·J̇·v. Built on the
+    exact pose (C = 0) with v(t0 − dt/2), the first step misses half the
+    J̇·v term of the loop forces, an error that does not shrink with dt
+    (measured: the free five-bar's B.Fy 0.44 N of its 14.5 N peak at t0,
+    3e-4 N after). The rates that give the first step the steady
+    state's forces: v0 − dt/2·a0 − dt/2·Pn·a0, with Pn·a0 the part of the
+    initial accelerations along the constraint forces (the kinetic-energy
+    projection, which the engine's own solver does): PyBullet finds it in
+    a throw-away copy of the model started at rates ε·a0 with no loads,
+    whose step keeps the tangential part Pt·(ε·a0) (drives held at ε·φ̈).
+    """
+    pose, rates = start_state(mechanism, t0, dt)
+    accel = {b.name: tuple(float(pose[f"{b.name}.{q}"].iloc[0]) for q in ("ax", "ay", "alpha"))
+             for b in mechanism.bodies}
+    size = max(max(abs(a) for a in values) for values in accel.values())
+    if size == 0.0:
+        return pose, rates
+    eps = PROBE_RATE / size
+    probe = pose.copy()
+    for body, values in accel.items():
+        for q, a in zip(("vx", "vy", "omega"), values):
+            probe[f"{body}.{q}"] = eps * a
+    quiet = dataclasses.replace(mechanism, gravity=(0.0, 0.0))
+    model = build(quiet, dt, layout, t0, (pose, probe))
+    try:
+        stepper = Stepper(quiet, model, np.array([t0]), 1, 0)
+        if not model.constraints and not stepper.motors:
+            return pose, rates
+        for motor in stepper.motors:
+            h = motor.joint.handle
+            q = p.getJointState(h.uid, h.link, physicsClientId=model.client)[0]
+            p.setJointMotorControl2(h.uid, h.link, p.POSITION_CONTROL, targetPosition=q,
+                                    targetVelocity=motor.sign * eps * motor.drive.law.alpha, positionGain=1.0,
+                                    velocityGain=1.0, force=NO_CAP, physicsClientId=model.client)
+        p.stepSimulation(physicsClientId=model.client)
+        kept = stepper.read_bodies()
+    finally:
+        p.disconnect(model.client)
+    for body, values in accel.items():
+        for k, (q, a) in enumerate(zip(("vx", "vy", "omega"), values)):
+            rates[f"{body}.{q}"] -= dt / 2 * (a - kept[body][3 + k] / eps)
+    return pose, rates
 
 
 def drive_coordinate(mechanism: Mechanism, drive: Drive, frame: pd.DataFrame) -> np.ndarray:

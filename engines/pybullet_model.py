@@ -101,8 +101,7 @@ def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
     of them the root of the other); every prismatic joint is a leaf
     (PyBullet's slider constraint has 5 rows, which over-constrain a planar
     loop closed by point-to-point constraints); the other ground joints are
-    leaves of the ground where the body is still free (before them, every
-    joint under a torque law that can still be one); every body left over
+    leaves of the ground where the body is still free; every body left over
     is the root of its own multibody. Any number of closed loops: every
     joint not placed closes one as a constraint. "tree": one breadth-first
     spanning tree from the ground (the naive layout).
@@ -146,8 +145,6 @@ def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
     for joint in mechanism.joints:
         if joint.kind == "prismatic" and joint not in drives and not attach(joint):
             raise ValueError(f"pybullet: prismatic joint {joint.name!r} cannot be made a leaf")
-    for law in mechanism.torque_drives:     # a leaf where it can be: a joint torque, not two body torques
-        attach(mechanism.joint(law.joint))
     for joint in mechanism.joints:
         if GROUND in (joint.body_i, joint.body_j) and joint.kind == "revolute":
             attach(joint)

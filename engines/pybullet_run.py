@@ -94,13 +94,16 @@ def steady_start(mechanism: Mechanism, dt: float, layout: str, t0: float) -> tup
     so its closed loops ride with a steady gap C ≈ ½·dt²·J̇·v. Built on the
     exact pose (C = 0) with v(t0 − dt/2), the first step misses half the
     J̇·v term of the loop forces, an error that does not shrink with dt
-    (measured: the free five-bar's B.Fy 0.44 N of its 14.5 N peak at t0,
-    3e-4 N after). The rates that give the first step the steady
-    state's forces: v0 − dt/2·a0 − dt/2·Pn·a0, with Pn·a0 the part of the
-    initial accelerations along the constraint forces (the kinetic-energy
-    projection, which the engine's own solver does): PyBullet finds it in
-    a throw-away copy of the model started at rates ε·a0 with no loads,
-    whose step keeps the tangential part Pt·(ε·a0) (drives held at ε·φ̈).
+    (measured: the motored slider-crank's B.Fy 0.30 N of its 43.8 N peak
+    at t0 at any step, 1e-4 N after; 9e-3 N with these rates). The rates
+    that give the first step the steady state's forces: v0 − dt/2·a0 −
+    dt/2·Pn·a0, with Pn·a0 the part of the initial accelerations along
+    the constraint forces (the kinetic-energy projection, which the
+    engine's own solver does): PyBullet finds it in a throw-away copy of
+    the model started at rates ε·a0 with no loads, whose step keeps the
+    tangential part Pt·(ε·a0) (drives held at ε·φ̈). Not explained: two
+    free bases pinned to each other (the five-bars) keep a transient in
+    their first two steps (docs/engines.md).
     """
     pose, rates = start_state(mechanism, t0, dt)
     accel = {b.name: tuple(float(pose[f"{b.name}.{q}"].iloc[0]) for q in ("ax", "ay", "alpha"))

@@ -220,9 +220,9 @@ def configure_solver(client: int, timestep: float, gravity: tuple[float, float])
 
 
 #: The forward-dynamics reference's tolerance where only a run's peak rates
-#: are needed (`planned_motion`): on the contract's dynamic cases and
-#: Andrews' squeezer it gives the step rule's Ω of 1e-10 to 3 digits in
-#: 0.2–1.4 s (a looser 1e-4 misjudged the jerk of the falling four-bar by
+#: are needed (`planned_motion`): on every case of tests/dynamic_mechanisms.py
+#: it gives the step rule's Ω of 1e-10 to 4 digits in about half the time
+#: (0.2–3.6 s; a looser 1e-4 misjudged the jerk of the falling four-bar by
 #: 40 %).
 RATE_RTOL = 1e-6
 

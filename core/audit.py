@@ -7,7 +7,8 @@ engine model must hold: per body mass, centre of mass (body frame) and izz
 (with no out-of-plane products of inertia, so z stays a principal axis);
 per joint its kind, bodies, point on each body, a prismatic joint's axis
 (body_i frame) and locked relative rotation, and its damping; the drive
-(joint, φ0, ω0, α); gravity (0 when the scene has none; z always 0); and a
+(joint, φ0, ω0, α); each torque law (joint, torque, amplitude, frequency,
+phase); gravity (0 when the scene has none; z always 0); and a
 fixed list of effects that must be absent (`ABSENT_EFFECTS`).
 
 Engine audits (`mechval.engines.*_audit`) build the model with the
@@ -44,7 +45,7 @@ import numpy as np
 import pandas as pd
 
 from .kinematics import rotate
-from .mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
+from .mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 #: Engines store what they are given in float64 (PyBullet too; only its
 #: `getLinkState` link-frame output is float32, and the audits do not use it)
@@ -173,6 +174,8 @@ def expected_model(mech: Mechanism) -> list[Expectation]:
                  Expectation(item, "phi0", law.phi0, unit, size),
                  Expectation(item, "omega0", law.omega0, f"{unit}/s", size),
                  Expectation(item, "alpha", law.alpha, f"{unit}/s²", size)]
+    for law in mech.torque_drives:
+        rows += _torque_law_expectations(law)
     for force in mech.forces:
         rows += _force_expectations(force, length)
     g = float(np.hypot(*mech.gravity))
@@ -187,6 +190,21 @@ def drive_item(mech: Mechanism, drive: Drive) -> str:
     """The first drive's rows are "drive" (as before several drives); the
     others' "drive NAME"."""
     return DRIVE if drive == mech.drive else f"{DRIVE} {drive.name}"
+
+
+def torque_law_item(law: TorqueLaw) -> str:
+    return f"torque law {law.name}"
+
+
+def _torque_law_expectations(law: TorqueLaw) -> list[Expectation]:
+    """A torque law's joint and T(t) = torque + amplitude·sin(2π·frequency·t + phase)."""
+    item = torque_law_item(law)
+    size = max(abs(law.torque), abs(law.amplitude))
+    return [Expectation(item, "joint", law.joint),
+            Expectation(item, "torque", law.torque, "N·m", size),
+            Expectation(item, "amplitude", law.amplitude, "N·m", size),
+            Expectation(item, "frequency", law.frequency, "Hz", abs(law.frequency)),
+            Expectation(item, "phase", law.phase, "rad", 1.0)]
 
 
 def force_item(force: SpringDamper | BodyTorque) -> str:

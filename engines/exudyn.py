@@ -49,7 +49,7 @@ from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 from .base import EngineAdapter, RawRun, RunInfo, default_step
 from .exudyn_audit import audit_model
 from .exudyn_model import solve
-from .exudyn_run import force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
+from .exudyn_run import scene_motion, force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
 
 #: Newton's absolute tolerance per newton of force scale. Newton stops at the
 #: relative goal (1e-12 of the step's first residual) or at this floor,
@@ -62,6 +62,19 @@ NEWTON_TOLERANCE_PER_NEWTON = 1e-13
 #: tests/test_exudyn.py on fourbar-seed (figures: docs/engines.md); cost
 #: grows as 1/rad_per_step.
 RAD_PER_STEP = 0.007
+#: Instants of the force estimate over the run; a torque-driven or free
+#: mechanism's uses the step rule's grid (`step_rate`), so that its motion
+#: is integrated once (`scene_motion`).
+FORCE_SCALE_GRID, STEP_RULE_GRID = 2001, 20001
+
+
+def own_start(mechanism: Mechanism) -> bool:
+    """Whether Exudyn's own initial-acceleration solve gives the first
+    instant: for a torque-driven or free mechanism (which starts there, with
+    no pre-roll, so that its reactions there come only from this solve)
+    whose remaining drives do not accelerate (the solve ignores a drive's
+    φ''; docs/engines.md)."""
+    return mechanism.forward_dynamics and all(d.law.alpha == 0.0 for d in mechanism.drives)
 
 
 class ExudynAdapter(EngineAdapter):
@@ -74,7 +87,9 @@ class ExudynAdapter(EngineAdapter):
         "solver": Choice(("index2", "index3")),
         "timestep": TIMESTEP,
         # At least one: t = 0 must be a solved step (see `prepare`).
-        "pre_roll_steps": Number(1, 100_000, whole=True),
+        # 0 for a torque-driven or free mechanism, which starts at its
+        # first instant (`prepare`).
+        "pre_roll_steps": Number(0, 100_000, whole=True),
         # Index-3 needs ρ < 1 (`index3_transient_steps`).
         "spectral_radius": Number(0.0, 1.0, high_open=True),
         "compute_initial_accelerations": Flag(),
@@ -100,7 +115,7 @@ class ExudynAdapter(EngineAdapter):
         """The pre-roll covers index-3's start-up transient (`prepare`)."""
         pre_roll = as_float(settings["pre_roll_steps"])
         rho = settings["spectral_radius"]
-        if settings["solver"] == "index3" and 0.0 <= rho < 1.0:
+        if settings["solver"] == "index3" and 0.0 <= rho < 1.0 and pre_roll:
             pre_roll = max(pre_roll, index3_transient_steps(rho))
         return steps_per_interval(times, as_float(settings["timestep"])), pre_roll
 
@@ -123,15 +138,17 @@ class ExudynAdapter(EngineAdapter):
         - spectral_radius (index-3 only): numerical damping; must stay < 1
           (at 1, λ zig-zags from step to step without decay).
         """
+        scene = scene_motion(mechanism)
         return {
             "solver": "index2",
-            "timestep": default_step(mechanism, times, rad_per_step=RAD_PER_STEP),
-            "pre_roll_steps": 10,
+            "timestep": default_step(scene, times, rad_per_step=RAD_PER_STEP),
+            "pre_roll_steps": 0 if mechanism.forward_dynamics else 10,
             "spectral_radius": 0.9,
-            "compute_initial_accelerations": False,
+            "compute_initial_accelerations": own_start(mechanism),
             "full_newton": True,
             "newton_relative_tolerance": 1e-12,
-            "newton_absolute_tolerance": NEWTON_TOLERANCE_PER_NEWTON * force_scale(mechanism, times),
+            "newton_absolute_tolerance": NEWTON_TOLERANCE_PER_NEWTON * force_scale(
+                scene, times, STEP_RULE_GRID if mechanism.forward_dynamics else FORCE_SCALE_GRID),
             "adaptive_step": False,
         }
 
@@ -147,7 +164,7 @@ class ExudynAdapter(EngineAdapter):
         wall_time = time.perf_counter() - clock
 
         state = node_states(model)
-        t_all = t0 + model.mbs.GetSensorStoredData(model.drive_sensor)[:, 0]
+        t_all = t0 + model.mbs.GetSensorStoredData(model.clock_sensor)[:, 0]
         rows = sample_rows(t_all, times)
         frame, missing, gap, drive_error = frame_of(mechanism, model, state, rows, times, t_all)
         info = {

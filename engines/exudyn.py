@@ -166,7 +166,8 @@ class ExudynAdapter(EngineAdapter):
         state = node_states(model)
         t_all = t0 + model.mbs.GetSensorStoredData(model.clock_sensor)[:, 0]
         rows = sample_rows(t_all, times)
-        frame, missing, gap, drive_error = frame_of(mechanism, model, state, rows, times, t_all)
+        frame, missing, gap, drive_error = frame_of(mechanism, model, state, rows, times, t_all,
+                                                    bool(settings["compute_initial_accelerations"]))
         info = {
             "steps": len(t_all) - 1,
             "pre_roll_start": t0, "newton_iterations": int(solver.it.newtonStepsCount),

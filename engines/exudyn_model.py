@@ -65,6 +65,8 @@ class ExudynModel:
 
     system: exu.SystemContainer
     mbs: exu.MainSystem
+    #: The state it starts from (`start_state`), raw motion columns.
+    start: pd.DataFrame | None = None
     reference: dict[str, np.ndarray] = field(default_factory=dict)
     body_sensors: dict[str, dict[str, int]] = field(default_factory=dict)
     joint_sensors: dict[str, int] = field(default_factory=dict)
@@ -114,8 +116,8 @@ def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
     """
     system = exu.SystemContainer()
     mbs = system.AddSystem()
-    model = ExudynModel(system, mbs)
     start = start_state(mechanism, t0)
+    model = ExudynModel(system, mbs, start)
 
     ground = mbs.AddObject(eii.ObjectGround())
     ground_node = mbs.AddNode(eii.NodePointGround())

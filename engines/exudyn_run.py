@@ -25,6 +25,8 @@ from .exudyn_model import SOLVERS, ExudynModel, build_model, simulation_settings
 #: by this factor.
 INDEX3_TRANSIENT_DECAY = 1e-8
 NO_PRISMATIC_COUPLE = "Exudyn 1.13.6 reports no couple of ObjectJointPrismatic2D (ForceLocal[2] stays 0)"
+UNSOLVED_START = ("Exudyn 1.13.6 reports zero reactions at its first instant unless its own initial-acceleration "
+                  "solve ran (compute_initial_accelerations), and a run with no pre-roll starts at the first sample")
 
 
 def prepare(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]
@@ -115,10 +117,12 @@ def node_states(model: ExudynModel) -> dict[str, dict[str, np.ndarray]]:
 
 
 def frame_of(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str, np.ndarray]],
-           rows: np.ndarray, times: np.ndarray, t_all: np.ndarray
+           rows: np.ndarray, times: np.ndarray, t_all: np.ndarray, solved_start: bool = False
            ) -> tuple[pd.DataFrame, dict[str, str], np.ndarray, np.ndarray]:
     """Raw columns at the sample rows and the reasons for missing ones, plus
-    the loop-closure gap and the drive tracking error at every stored step."""
+    the loop-closure gap and the drive tracking error at every stored step.
+    The reactions and drive efforts at the first stored step are missing
+    unless Exudyn solved for them there (`solved_start`)."""
     motion = _frame_motion(mechanism, state, t_all)
     columns = {"t": np.asarray(times, dtype=float)}
     columns.update({name: motion[name].to_numpy()[rows] for name in mechanism.motion_columns()})
@@ -136,7 +140,11 @@ def frame_of(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str
     for drive in mechanism.drives:
         effort = drive.effort_column(mechanism.joint(drive.joint).kind)
         columns[effort] = -model.mbs.GetSensorStoredData(model.drive_sensors[drive.name])[rows, 1]
-    for law in mechanism.torque_drives:
+    if not solved_start and rows[0] == 0:
+        for column in (c for c in mechanism.reaction_columns() if c in columns):   # not the torque laws
+            columns[column][0] = np.nan
+            missing.setdefault(column, UNSOLVED_START)
+    for law in mechanism.torque_drives:     # the applied torque, known at every step
         sensor, sign = model.torque_sensors[law.name]
         columns[f"{law.name}.T"] = sign * model.mbs.GetSensorStoredData(sensor)[rows, 3]
 

@@ -44,6 +44,7 @@ import pandas as pd
 
 from mechval.adapter import FEATURES, as_float, steps_per_interval
 from mechval.mechanism import Mechanism
+from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
 from .base import EngineAdapter, RawRun, RunInfo, default_step
@@ -151,6 +152,22 @@ class ExudynAdapter(EngineAdapter):
                 scene, times, STEP_RULE_GRID if mechanism.forward_dynamics else FORCE_SCALE_GRID),
             "adaptive_step": False,
         }
+
+    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
+                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """As every adapter's, and a pre-roll that does not fit the motion
+        is refused with the file (or override) and key: at least one step
+        for prescribed motion (Exudyn reports zero reactions at its first
+        instant), none for a torque-driven or free mechanism (its motion is
+        known only from its first instant on)."""
+        settings = super().settings_for(scenario, mechanism, overrides)
+        if (settings["pre_roll_steps"] == 0) != mechanism.forward_dynamics:
+            source = "settings override" if "pre_roll_steps" in (overrides or {}) else scenario.source
+            reason = ("must be 0 for a torque-driven or free mechanism: it starts at its first instant"
+                      if mechanism.forward_dynamics else
+                      "must be at least 1: Exudyn reports zero reactions at its first instant")
+            raise ScenarioError(source, f"engines.{self.name}.pre_roll_steps", reason)
+        return settings
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         return audit_model(mechanism, times, settings)

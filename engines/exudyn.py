@@ -23,7 +23,12 @@ Conversion of Exudyn's native outputs to the mechval convention:
   against the reference confirm both).
 - Spring-dampers and body torques are engine elements
   (`ObjectConnectorSpringDamper`, `LoadTorqueVector`); they have no
-  column of their own.
+  column of their own. A torque law is a pair of `LoadTorqueVector`s
+  (T on body_j, −T on body_i) whose user function evaluates the law; its
+  column "NAME.T" is the applied torque read back by a load sensor.
+- A torque-driven or free mechanism runs from its first instant, in the
+  forward-dynamics reference's initial state; its degrees of freedom that
+  no drive prescribes carry no constraint.
 - Time stamp: the implicit solvers satisfy the equations of motion and the
   constraints at the end of every step, so the sensor value recorded after
   the step to t_n+1 belongs to t_n+1 (no half-step shift as in explicit
@@ -50,7 +55,8 @@ from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 from .base import EngineAdapter, RawRun, RunInfo, default_step
 from .exudyn_audit import audit_model
 from .exudyn_model import solve
-from .exudyn_run import scene_motion, force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
+from .exudyn_run import (force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows,
+                         scene_motion)
 
 #: Newton's absolute tolerance per newton of force scale. Newton stops at the
 #: relative goal (1e-12 of the step's first residual) or at this floor,
@@ -87,9 +93,9 @@ class ExudynAdapter(EngineAdapter):
     settings_spec: ClassVar[Mapping[str, Setting]] = {
         "solver": Choice(("index2", "index3")),
         "timestep": TIMESTEP,
-        # At least one: t = 0 must be a solved step (see `prepare`).
+        # At least one for prescribed motion (t = 0 must be a solved step),
         # 0 for a torque-driven or free mechanism, which starts at its
-        # first instant (`prepare`).
+        # first instant (`settings_for`, `prepare`).
         "pre_roll_steps": Number(0, 100_000, whole=True),
         # Index-3 needs ρ < 1 (`index3_transient_steps`).
         "spectral_radius": Number(0.0, 1.0, high_open=True),
@@ -138,6 +144,12 @@ class ExudynAdapter(EngineAdapter):
         - adaptive_step False: it silently shrinks steps;
         - spectral_radius (index-3 only): numerical damping; must stay < 1
           (at 1, λ zig-zags from step to step without decay).
+
+        A torque-driven or free mechanism (`Mechanism.forward_dynamics`)
+        starts at its first instant: no pre-roll, and Exudyn's own
+        initial-acceleration solve (`own_start`) gives the reactions there;
+        its step rule and force scale read the forward-dynamics reference
+        (`scene_motion`).
         """
         scene = scene_motion(mechanism)
         return {

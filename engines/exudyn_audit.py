@@ -19,7 +19,9 @@ joint whose relative coordinate it acts on: the rotation coordinates of the
 joint's two bodies (revolute), or their relative translation along the
 joint's axis (prismatic). The drive law is read by evaluating the drive
 constraint's offset user function (a quadratic: three points determine it,
-a fourth checks it) and its time derivative.
+a fourth checks it) and its time derivative. A torque law is read from its
+two loads (see `Reader.torque_law`), and a joint integrated from an initial
+value from the coordinate constraints on its coordinate (there must be none).
 """
 
 from __future__ import annotations

@@ -407,3 +407,17 @@ def test_without_its_own_initial_solve_the_first_reactions_are_missing(adapter):
     assert "zero reactions" in raw.missing["O.Fx"] and "drive.T" not in raw.missing
     with pytest.raises(ValueError, match="pre_roll_steps must be 0"):
         adapter.run(mech, times, {**settings, "pre_roll_steps": 1})
+
+
+def test_a_torque_law_is_applied_at_the_step_s_own_time(adapter):
+    """The crank under its torque law against the closed form: halving the
+    step quarters the error (measured 2.93e-5 → 7.32e-6 rad, ratio 4.0), as
+    the second-order solver gives when the load is evaluated at the time of
+    the step it acts in; a torque lagging by a step would be first order
+    (ratio 2)."""
+    mech, times = dynamic_case("spinning-crank", 1.0)
+    settings = adapter.default_settings(mech, times)
+    theta, _ = dm.spinning_exact(times)
+    error = [float(np.max(np.abs(adapter.run(mech, times, {**settings, "timestep": dt}).frame["crank.theta"] - theta)))
+             for dt in (1e-3, 5e-4)]
+    assert error[0] / error[1] > 3.8

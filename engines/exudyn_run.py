@@ -13,12 +13,11 @@ import exudyn as exu
 import numpy as np
 import pandas as pd
 
-from mechval.dynamics import raw_dynamics
 from mechval.health import drive_errors
 from mechval.kinematics import joint_gaps, point_motion, rotate
 from mechval.mechanism import GROUND, MOTION_QUANTITIES, Mechanism
 
-from .exudyn_model import SOLVERS, ExudynModel, build_model, simulation_settings
+from .exudyn_model import SOLVERS, ExudynModel, build_model, forward_motion, simulation_settings
 
 #: The index-3 force transient after the start shrinks like ρ^n over n
 #: steps, whatever the step (docs/engines.md); the pre-roll lets it decay
@@ -75,7 +74,7 @@ def scene_motion(mechanism: Mechanism) -> Mechanism:
         t = np.asarray(t, dtype=float)
         key = (float(t[0]), float(t[-1]), len(t))
         if key not in frames:
-            frames[key] = raw_dynamics(mechanism, t).frame
+            frames[key] = forward_motion(mechanism, t)
         return frames[key]
 
     return dataclasses.replace(mechanism, motion=motion)

@@ -22,7 +22,8 @@ from mechval.compare import compare, format_records, passed
 from mechval.drive import DriveLaw
 from mechval.dynamics import raw_dynamics
 from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, Joint, Mechanism
+from mechval.adapter import Unrepresentable
+from mechval.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, InitialValue, Joint, Mechanism
 from mechval.reference import raw_reference, simulate_reference
 from mechval.scenarios import parse
 from scenario_data import fourbar, slider_crank
@@ -421,3 +422,14 @@ def test_a_torque_law_is_applied_at_the_step_s_own_time(adapter):
     error = [float(np.max(np.abs(adapter.run(mech, times, {**settings, "timestep": dt}).frame["crank.theta"] - theta)))
              for dt in (1e-3, 5e-4)]
     assert error[0] / error[1] > 3.8
+
+
+def test_initial_values_the_reference_refuses_are_refused_with_its_key(adapter):
+    """Too many initial values for the four-bar's one degree of freedom: the
+    adapter says what the forward-dynamics reference says, naming the key,
+    before any Exudyn model exists."""
+    mech, times = dynamic_case("free-fourbar", 0.1, 11)
+    bad = dataclasses.replace(mech, initial_values=(InitialValue("A", 0.3), InitialValue("O2", 0.3)))
+    with pytest.raises(Unrepresentable) as refused:
+        adapter.default_settings(bad, times)
+    assert refused.value.key == "initial" and "too many initial values" in refused.value.reason

@@ -433,3 +433,16 @@ def test_initial_values_the_reference_refuses_are_refused_with_its_key(adapter):
     with pytest.raises(Unrepresentable) as refused:
         adapter.default_settings(bad, times)
     assert refused.value.key == "initial" and "too many initial values" in refused.value.reason
+
+
+@pytest.mark.parametrize("solver", ["index2", "index3"])
+def test_a_free_run_takes_the_steps_it_declares(adapter, solver):
+    """Run size (`planned_steps`, checked before any run): a torque-driven
+    run has no pre-roll, with either solver (index-3's transient pre-roll is
+    for prescribed motion), and takes exactly the declared steps."""
+    mech, times = dynamic_case("spinning-crank", 0.2, 21)
+    settings = {**adapter.default_settings(mech, times), "solver": solver}
+    per_interval, pre_roll = adapter.planned_steps(times, settings)
+    raw = adapter.run(mech, times, settings)
+    assert pre_roll == 0 and raw.info.facts["pre_roll_start"] == times[0]
+    assert raw.info.steps == per_interval * (len(times) - 1)

@@ -152,7 +152,7 @@ class Reader:
     def readings(self, peak_rate: float) -> list[Reading]:
         out = [r for b in self.mech.bodies for r in self.body(b.name)]
         out += [r for j in self.mech.joints for r in self.joint(j)]
-        return out + self.drive() + self.torque_laws() + self.forces() + self.scene(peak_rate) + self.notes()
+        return out + self.drive() + self.prescribed_motion() + self.torque_laws() + self.forces() + self.scene(peak_rate) + self.notes()
 
     def body(self, name: str) -> list[Reading]:
         h = self.model.bodies[name]
@@ -232,6 +232,14 @@ class Reader:
                              "The joint whose motor the stepping loop drives.", "set"),
                      *(Reading(item, q, "stepping loop", law, "note") for q in ("phi0", "omega0", "alpha"))]
         return rows
+
+    def prescribed_motion(self) -> list[Reading]:
+        """Per joint whose motion is integrated from an initial value, the
+        position motors the stepping loop drives on it (none expected)."""
+        motors = {motor.joint.joint.name for motor in self.stepper.motors}
+        return [Reading(joint_item(v.joint), "prescribed motion", "position motor" if v.joint in motors else "none",
+                        "position motors the stepping loop drives on the joint", "set")
+                for v in self.mech.initial_values]
 
     def torque_laws(self) -> list[Reading]:
         """Each torque law as the stepping loop will apply it (not in the

@@ -298,6 +298,22 @@ class AdapterContract:
         ratios = dynamic_errors(mech, reference, frame)
         assert {column: ratio for column, ratio in ratios.items() if not ratio <= 1.0} == {}
 
+    @pytest.mark.parametrize("name", ["free-fourbar", "motored-slider-crank"])
+    def test_the_dynamic_model_holds_only_the_scene(self, adapter, name):
+        """The compiled-model audit of a free and a motored mechanism: each
+        torque law as stated, nothing prescribing a joint that is
+        integrated from its initial value, no other effect."""
+        mech, times = dynamic_mechanism(name)
+        if self.without_forward_dynamics:
+            pytest.skip(self.without_forward_dynamics)
+        if self.without_model_audit:
+            pytest.skip(self.without_model_audit)
+        table = adapter.audit(mech, times, adapter.default_settings(mech, times))
+        assert failures(table).empty, "\n" + format_audit(failures(table))
+        assert {"prescribed motion"} <= set(table["quantity"])
+        if mech.torque_drives:
+            assert any(item.startswith("torque law") for item in table["item"])
+
     def test_a_torque_law_is_an_applied_joint_torque(self, adapter):
         """The crank under T(t) = T0 + a·sin(2πft + φ) (tests/dynamic_mechanisms.py
         SPIN): its effort column is the law itself, not a servo's

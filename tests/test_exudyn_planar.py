@@ -8,11 +8,17 @@ scene's worst signals.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from conftest import engine_or_skip
+from conftest import builtin_scenario, engine_or_skip
+from mechval.adapter import mechanism_features
 from mechval.audit import failures
 from mechval.harness.audit_run import audit_scenario
+from mechval.harness.simulate import simulate
+from mechval.linkages import build_mechanism
+from mechval.scenario import ScenarioError
 from planar_contract import PlanarContract
 from planar_scenes import scene
 
@@ -68,3 +74,35 @@ def test_audit_catches_wrong_force_elements_and_drives(monkeypatch):
                                         ("drive", "alpha"), ("spring return", "stiffness"),
                                         ("spring return", "extras"), ("torque block", "torque")}
     assert failing("five-bar") == {("drive O4", "ratio")}
+
+
+PARALLELOGRAM = "planar-extra/parallelogram-double-fourbar"
+
+
+def test_redundant_constraints_are_refused_up_front_with_the_reason():
+    """The parallelogram's third crank makes one joint equation redundant:
+    the harness refuses Exudyn there in one line (file, key, engine and
+    why) before Exudyn runs, rather than a solver error at its first step."""
+    adapter = engine_or_skip("exudyn")
+    scenario = builtin_scenario(PARALLELOGRAM)
+    assert mechanism_features(build_mechanism(scenario))["redundant constraints"] == "joint"
+    assert "redundant constraints" not in adapter.features
+    with pytest.raises(ScenarioError) as caught:
+        simulate(scenario, adapter)
+    error = caught.value
+    assert (Path(error.source).name, error.key) == ("parallelogram-double-fourbar.toml", "joint")
+    assert error.reason.startswith("exudyn: cannot run redundant constraints: its solver stops at the first step")
+
+
+@pytest.mark.parametrize("solver, stop", [("index2", "System Jacobian seems to be singular"),
+                                          ("index3", "SolveDynamic terminated")])
+def test_exudyn_still_stops_on_redundant_constraints(solver, stop):
+    """The refusal's reason, measured: Exudyn itself, run past the refusal,
+    stops at its first step with either solver. Fails when an Exudyn
+    release runs redundant constraints, so the refusal can be lifted."""
+    adapter = engine_or_skip("exudyn")
+    scenario = builtin_scenario(PARALLELOGRAM)
+    mechanism = build_mechanism(scenario)
+    settings = adapter.settings_for(scenario, mechanism, {} if solver == "index2" else {"solver": solver})
+    with pytest.raises(Exception, match=stop):
+        adapter.run(mechanism, scenario.time.t, settings)

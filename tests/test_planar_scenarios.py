@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import CLOSED_FORM, builtin_scenario
+from mechval.adapter import mechanism_features
 from mechval.analysis import analyse, format_analysis
 from mechval.harness.simulate import simulate
 from mechval.linkages import build_mechanism
@@ -267,6 +268,16 @@ def test_engines_are_refused_what_their_adapters_do_not_build(engine_name):
         with pytest.raises(ScenarioError, match=rf"seed.toml: force.force1: {engine_name}: its adapter does not "
                                                 "build spring-dampers yet"):
             simulate(parse(data, "seed.toml"), engine)
+
+
+@pytest.mark.parametrize("name", ["planar-extra/parallelogram-double-fourbar", "five-bar-two-drives", "watt-six-bar",
+                                  "jansen-leg", "fourbar-seed"])
+def test_redundant_constraints_are_a_feature_an_engine_must_declare(name):
+    """Only the parallelogram (three equal parallel cranks) has a redundant
+    joint equation; an engine that cannot run one is refused it by name
+    (tests/test_exudyn_planar.py), as for every other feature."""
+    features = mechanism_features(build_mechanism(builtin_scenario(name)))
+    assert ("redundant constraints" in features) == name.endswith("parallelogram-double-fourbar")
 
 
 def planar_examples() -> list:

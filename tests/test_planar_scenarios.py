@@ -280,6 +280,54 @@ def test_redundant_constraints_are_a_feature_an_engine_must_declare(name):
     assert ("redundant constraints" in features) == name.endswith("parallelogram-double-fourbar")
 
 
+@pytest.mark.parametrize("name", ["watt-six-bar", "stephenson-six-bar", "jansen-leg", "slider-driven-slider-crank",
+                                  "andrews-squeezer"])
+def test_the_report_draws_the_mechanism_to_scale(name):
+    """The report's drawing (reports/plots.py) of a planar built-in: at each
+    drawn instant every body is there, each body's points keep the
+    distances its file gives (to scale, equal axes), ternary links are
+    closed polygons, both ends of every revolute joint are drawn at one
+    place (the loops are closed in the picture) and every spring is drawn
+    between its two points."""
+    from mechval.reports.plots import mechanism_figure
+    scenario = builtin_scenario(name)
+    mech = build_mechanism(scenario)
+    figure = mechanism_figure(mech, scenario.time.end)
+    assert (figure["layout"]["yaxis"]["scaleanchor"], figure["layout"]["yaxis"]["scaleratio"]) == ("x", 1)
+    scale = size(mech)
+    instants = sorted({trace["legendgroup"] for trace in figure["data"] if "legendgroup" in trace})
+    assert len(instants) == 4
+    for instant in instants:
+        drawn = {trace["text"][0]: np.column_stack([trace["x"], trace["y"]])
+                 for trace in figure["data"] if trace.get("legendgroup") == instant}
+        assert set(drawn) == {b.name for b in mech.bodies} | {f.name for f in mech.forces if hasattr(f, "stiffness")}
+        where = {}                                 # (joint, side) → drawn point
+        for body in mech.bodies:
+            joints = [j for j in mech.joints if body.name in (j.body_i, j.body_j)]
+            local = [np.array(j.point_j if j.body_j == body.name else j.point_i) for j in joints]
+            points = drawn[body.name]
+            closed = len({tuple(p) for p in points[:len(local)]}) >= 3
+            assert len(points) == len(local) + closed and (not closed or np.array_equal(points[0], points[-1]))
+            for a in range(len(local)):
+                for b in range(a):
+                    assert abs(np.linalg.norm(points[a] - points[b]) - np.linalg.norm(local[a] - local[b])) \
+                        <= 1e-9 * scale, (instant, body.name)
+            for j, point in zip(joints, points):
+                where[j.name, "j" if j.body_j == body.name else "i"] = point
+        for j in mech.joints:
+            if j.kind == "revolute":
+                ends = [where.get((j.name, side), np.array(j.point_i if side == "i" else j.point_j)) for side in "ij"]
+                assert np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * scale, (instant, j.name)
+        for spring in (f for f in mech.forces if hasattr(f, "stiffness")):
+            a, b = drawn[spring.name]
+            for end, body, point in ((a, spring.body_a, spring.point_a), (b, spring.body_b, spring.point_b)):
+                joint = next((j for j in mech.joints if (j.body_i, j.point_i) == (body, point)
+                              or (j.body_j, j.point_j) == (body, point)), None)
+                if joint is not None:            # a spring end at a joint's point is drawn there
+                    side = "i" if (joint.body_i, joint.point_i) == (body, point) else "j"
+                    assert np.linalg.norm(end - where.get((joint.name, side), np.array(point))) <= 1e-9 * scale
+
+
 def planar_examples() -> list:
     """The ```toml planar blocks of the docs: complete planar files."""
     import re

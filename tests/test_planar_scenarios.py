@@ -166,6 +166,48 @@ def test_redundant_parallelogram_through_the_harness():
     assert "redundant           1 constraint (Jacobian rank 12)" in text
 
 
+def slider_driven_near_dead_centre(gap: float, end: float = 1.0):
+    """The built-in slider-driven slider-crank with its slide passing `gap`
+    m from the inner dead centre s = conrod − crank = 0.2 m at t = 0.5 s:
+    s(t) = 0.35 − a·t/2 + a·t²/2, a = (0.15 − gap)/0.125, s(0.5) = 0.2 + gap."""
+    data = tomllib.loads((ROOT / "scenarios" / "slider-driven-slider-crank.toml").read_text(encoding="utf-8"))
+    a = (0.35 - 0.2 - gap) / 0.125
+    data["drive"] = [dict(data["drive"][0], phi0=0.35, omega0=-0.5 * a, alpha=a)]
+    data["time"] = {"end": end, "samples": 201}
+    return parse(data, "near-dead-centre.toml")
+
+
+def test_analyse_finds_the_near_singular_instant():
+    """1e-4 m from the dead centre the Jacobian's condition peaks at t =
+    0.5 s, over 10× its median (crank and conrod nearly collinear); 1e-2 m
+    away it stays within 2× and nothing is reported; a run that stops at
+    the near-singular instant reports it too."""
+    near = analyse(slider_driven_near_dead_centre(1e-4))
+    assert [t for t, _ in near.near_singular] == [0.5] and near.condition_t == 0.5
+    assert near.near_singular[0][1] > 10 * near.condition_median
+    text = format_analysis(near)
+    assert "near-singular       1 instant (condition peaks above 10× the median)" in text
+    assert "t =    0.50000 s  condition" in text
+    far = analyse(slider_driven_near_dead_centre(1e-2))
+    assert far.near_singular == () and far.condition_max < 2 * far.condition_median
+    assert [t for t, _ in analyse(slider_driven_near_dead_centre(1e-4, end=0.5)).near_singular] == [0.5]
+
+
+def test_analyse_refuses_an_instant_its_denser_grid_cannot_solve(monkeypatch):
+    """`analyse` solves at ≥ 2001 instants, more than the file's samples: an
+    instant refused there is one line naming the file, the key and the
+    time (it was a traceback)."""
+    import mechval.planar_analysis as planar_analysis
+    from mechval.planar_constraints import MechanismError
+
+    def refuses(mech, t):
+        raise MechanismError("time", "the loop cannot close at t = 0.4955 s")
+    monkeypatch.setattr(planar_analysis, "raw_planar", refuses)
+    with pytest.raises(ScenarioError) as caught:
+        analyse(parse(copy.deepcopy(FIVE_BAR), "five-bar.toml"))
+    assert str(caught.value) == "five-bar.toml: time: the loop cannot close at t = 0.4955 s"
+
+
 # -- refusals -----------------------------------------------------------------------------------------
 
 def mutate(base: dict, path: tuple, value) -> dict:

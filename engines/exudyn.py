@@ -114,8 +114,12 @@ class ExudynAdapter(EngineAdapter):
 
     step_settings = ("timestep", "pre_roll_steps", "spectral_radius")
     #: Every drive a coordinate constraint, springs and torques engine
-    #: elements (`exudyn_model`).
-    features = frozenset(FEATURES)
+    #: elements (`exudyn_model`). Not redundant constraints: measured on
+    #: Exudyn 1.13.6 with the parallelogram double four-bar (docs/engines.md).
+    features = frozenset(FEATURES) - {"redundant constraints"}
+    feature_limits = {"redundant constraints": "its solver stops at the first step on the singular system "
+                                               "Jacobian ('System Jacobian seems to be singular' with the index-2 "
+                                               "solver, 'SolveDynamic terminated' with index-3)"}
     output_copies, bytes_per_step = 4, 1600       # every sensor at every step
 
     def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:

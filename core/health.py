@@ -144,6 +144,9 @@ def health(mech: Mechanism, raw: pd.DataFrame, missing: Mapping[str, str] = ()) 
         peak = float(np.nanmax(np.abs(kinetic_rate(mech, raw))))
     # At rest (a free scene released at an equilibrium) there is no power to
     # scale by: the residual is then undefined, not rounding over 1e-300.
-    result["power_residual"] = np.abs(power - rate) / (peak if peak > 0 or mech.drives else np.nan)
+    # A prescribed scene held still keeps the old floor (its residual is then
+    # rounding over 1e-300, as before).
+    scale = max(peak, 1e-300) if mech.drives else (peak if peak > 0 else np.nan)
+    result["power_residual"] = np.abs(power - rate) / scale
     result.update(energy_health(mech, raw))
     return pd.DataFrame(result)

@@ -69,6 +69,7 @@ on fourbar-seed.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any, ClassVar, Mapping
 
@@ -76,8 +77,10 @@ import numpy as np
 import pandas as pd
 
 from mechval.adapter import FEATURES, as_float, ceil_or_inf, steps_per_interval
-from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step
+from mechval.dynamics import raw_dynamics
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step
 from mechval.mechanism import Mechanism
+from mechval.planar_constraints import MechanismError
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from .mujoco_audit import audit_model
@@ -85,6 +88,26 @@ from .mujoco_model import INTEGRATORS, SOLIMP
 from .mujoco_run import Model, warnings_silenced
 
 MODES = ("forward", "inverse")
+#: The forward-dynamics reference's tolerance when it only tells the step
+#: rule how fast a torque-driven or free mechanism moves (Ω within a few
+#: per cent is all the rule needs).
+STEP_RATE_RTOL = 1e-6
+
+
+def predicted_motion(mechanism: Mechanism) -> Mechanism:
+    """The mechanism whose `motion` is what the step rule should look at:
+    its prescribed motion, or for a torque-driven or free one the
+    forward-dynamics reference from its initial state (its own `motion`
+    then describes no run)."""
+    if not mechanism.forward_dynamics:
+        return mechanism
+
+    def motion(t: np.ndarray):
+        try:
+            return raw_dynamics(mechanism, t, rtol=STEP_RATE_RTOL).frame
+        except MechanismError as exc:
+            raise Unrepresentable(exc.key, exc.reason) from None
+    return dataclasses.replace(mechanism, motion=motion)
 
 
 class MujocoAdapter(EngineAdapter):
@@ -154,7 +177,7 @@ class MujocoAdapter(EngineAdapter):
         return {
             "mode": "forward",
             "integrator": "RK4",
-            "timestep": default_step(mechanism, times),
+            "timestep": default_step(predicted_motion(mechanism), times),
             "refine": 1,
             "solref_steps": 10.0,
             "drive_solref_steps": 1.0,
@@ -163,7 +186,8 @@ class MujocoAdapter(EngineAdapter):
             "tolerance": 0.0,
             "iterations": 3,
             "clock_mass": 1e12,
-            "preroll_timeconsts": 20.0,
+            # A torque-driven or free run has no path to pre-roll along.
+            "preroll_timeconsts": 0.0 if mechanism.forward_dynamics else 20.0,
         }
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
@@ -180,7 +204,8 @@ class MujocoAdapter(EngineAdapter):
             frame, info = runner()
         solref = lambda eq: " ".join(f"{v:.6g}" for v in model.m.eq_solref[eq])
         info.update(build_time_s=build_time, step=model.dt, solimp=settings["solimp"],
-                    solref=solref(model.loop_eq) if model.loop_eqs else "none", drive_solref=solref(model.drive_eq))
+                    solref=solref(model.loop_eq) if model.loop_eqs else "none",
+                    drive_solref=solref(model.drive_eq) if model.drive_eqs else "none")
         return RawRun(frame, {}, RunInfo.of(info))
 
 

@@ -81,6 +81,7 @@ from mechval.dynamics import raw_dynamics
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step
 from mechval.mechanism import Mechanism
 from mechval.planar_constraints import MechanismError
+from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from .mujoco_audit import audit_model
@@ -189,6 +190,21 @@ class MujocoAdapter(EngineAdapter):
             # A torque-driven or free run has no path to pre-roll along.
             "preroll_timeconsts": 0.0 if mechanism.forward_dynamics else 20.0,
         }
+
+    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
+                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """As every adapter's; a pre-roll asked of a torque-driven or free run
+        is refused with its origin and key: such a run starts at the first
+        instant from its initial state (`planned_steps` counts none)."""
+        settings = super().settings_for(scenario, mechanism, overrides)
+        if mechanism.forward_dynamics and settings["preroll_timeconsts"]:
+            in_file = "preroll_timeconsts" in scenario.settings_for(self.name)
+            in_override = "preroll_timeconsts" in (overrides or {})
+            raise ScenarioError(scenario.source if in_file and not in_override else "settings override",
+                                f"engines.{self.name}.preroll_timeconsts",
+                                "a torque-driven or free run starts at the first instant from its initial state, "
+                                "with no pre-roll: leave it out or set 0")
+        return settings
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         return audit_model(mechanism, times, settings)

@@ -45,6 +45,8 @@ ENGINE = "mujoco"
 #: A damper matches a joint when its Jacobian row is a multiple of the
 #: joint's relative-rate row to this relative residual (rounding only).
 PARALLEL = 1e-12
+#: A torque law's parameters (its rows besides "joint").
+LAW_PARAMETERS = ("torque", "amplitude", "frequency", "phase")
 
 
 def audit_model(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
@@ -384,11 +386,11 @@ class Reader:
         if not shape or not deviation <= AUDIT_RTOL * size:
             why = ("not an integrator-activation actuator with a fixed gain and no bias" if not shape else
                    f"the torque applied at the step boundaries is off T(t) by up to {deviation:.3g} N·m")
-            return readings + [Reading(item, "torque", why)]
+            return readings + [Reading(item, quantity, why) for quantity in LAW_PARAMETERS]
         note = (f"the rollout's controls (the law's slope per step); read back: gear × gain × activation is T(t) "
                 f"at all {nstep + 1} step boundaries to {deviation:.1g} N·m, linear in between")
         return readings + [Reading(item, quantity, float(getattr(law, quantity)), note, "set")
-                           for quantity in ("torque", "amplitude", "frequency", "phase")]
+                           for quantity in LAW_PARAMETERS]
 
     def gravity(self) -> np.ndarray:
         return np.zeros(3) if self.disabled(DSBL.mjDSBL_GRAVITY) else np.array(self.m.opt.gravity)

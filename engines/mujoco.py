@@ -16,10 +16,32 @@ Modes (setting "mode"):
   at the end of the step, which would make the error O(dt)). The read-out
   costs one `mj_forward` per sample plus vectorised numpy; everything it
   needs is in fixed mjData fields, copied in one piece (`Snapshot`).
+  A torque-driven or free mechanism (`Mechanism.forward_dynamics`) starts
+  at the first instant, with no pre-roll (there is no prescribed path to
+  pre-roll along), from the forward-dynamics reference's consistent state
+  there (`mechval.dynamics.raw_dynamics` at times[:1]); only its remaining
+  prescribed drives get clocks. Each `TorqueLaw` is an actuator on a fixed
+  tendon whose length is the joint's θj − θi, with integrator activation
+  dynamics and gain 1: its force is its activation, which starts at T(t0)
+  and whose rate is the control. The rollout's control over step n is the
+  law's slope (T(t_n+1) − T(t_n))/dt, so the applied torque is the law at
+  every step boundary (every sample) and linear in between, in every RK4
+  stage, with no Python per step. Why not the alternatives: a control held
+  over the step (a motor, or qfrc_applied per step) is the law only at the
+  step's start, an O(dt) error in the motion, and its column at a sample
+  is not T(t); a control callback (mjcb_control) sees each stage's time
+  but runs Python four times per step, process-wide, and rules out the
+  rollout. The column "NAME.T" is the actuator's force read back at the
+  sample. The default step takes Ω from the forward-dynamics reference at
+  rtol 1e-6 (`predicted_motion`): the mechanism's own `motion` describes
+  no run there.
 - "inverse": `mj_inverse` at the reference q, q̇, q̈ with constraints off;
   qfrc_inverse is split by least squares into the drive torque on its
   coordinate and the loop force through the cut pin's Jacobian. This checks
-  frames, signs and inertias independently of time integration.
+  frames, signs and inertias independently of time integration. For a
+  torque-driven or free mechanism the reference state is the forward
+  dynamics' integrated motion, and each torque law's generalized force is
+  known (its activation set to T(t)) and taken out before the split.
 
 Conversion of native outputs to Fij (force BY body_i ON body_j, world axes,
 at the sample instant):

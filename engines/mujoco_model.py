@@ -28,6 +28,12 @@ Model layout (docs/engines.md, MuJoCo):
   −k·(ℓ − ℓ0) − c·ℓ̇ along the line. A body torque is an actuator with a
   constant bias force (the torque, no control gain) on a fixed tendon over
   the hinges of the body's tree path, whose rate is the body's ω.
+- A torque law (T on body_j, −T on body_i) is an actuator on a fixed tendon
+  whose length is the joint's relative angle θj − θi (`angle_coefficients`:
+  the joint's own hinge, or path sums for a cut pin), its force its
+  activation (integrator dynamics), fed the law's slope per step
+  (`torque_law_controls`). A degree of freedom that no drive prescribes
+  gets no clock and no equality.
 - No geoms, contacts disabled, autoreset disabled, radians, explicit
   inertials, no joint damping/armature/friction/stiffness/limits. `refsafe`
   is off so that solref is used as written (it would raise the drive's

@@ -192,6 +192,17 @@ class Reader:
             mujoco.mj_jac(self.m, self.d, jacp, jacr, self.d.xipos[bid] if point is None else point, bid)
         return jacp, jacr
 
+    def fixed_tendon_row(self, t: int) -> np.ndarray | None:
+        """The Jacobian row of a fixed tendon (its coefficients on the dofs),
+        or None if it wraps anything but joints."""
+        m = self.m
+        row, adr = np.zeros(m.nv), m.tendon_adr[t]
+        for w in range(adr, adr + m.tendon_num[t]):
+            if m.wrap_type[w] != mujoco.mjtWrap.mjWRAP_JOINT:
+                return None
+            row[m.jnt_dofadr[m.wrap_objid[w]]] += m.wrap_prm[w]
+        return row
+
     def damper_rows(self) -> list[tuple[str, float, np.ndarray | None]]:
         """(label, coefficient, Jacobian row or None if not linear) of every
         damper in the model."""
@@ -203,13 +214,7 @@ class Reader:
         for t in np.flatnonzero(m.tendon_damping):
             if t in self.element_tendons:
                 continue                         # a spring-damper's (`force`)
-            row, adr = np.zeros(m.nv), m.tendon_adr[t]
-            for k in range(adr, adr + m.tendon_num[t]):
-                if m.wrap_type[k] != mujoco.mjtWrap.mjWRAP_JOINT:
-                    row = None
-                    break
-                row[m.jnt_dofadr[m.wrap_objid[k]]] += m.wrap_prm[k]
-            found.append((f"tendon {t}", float(m.tendon_damping[t]), row))
+            found.append((f"tendon {t}", float(m.tendon_damping[t]), self.fixed_tendon_row(t)))
         for field in ("dof_dampingpoly", "tendon_dampingpoly", "actuator_damping", "actuator_dampingpoly"):
             found += [(f"{field}[{index}]", float("nan"), None) for index in nonzero(getattr(m, field))]
         return found
@@ -332,12 +337,9 @@ class Reader:
                     "element for it; the read-out adds it to the couples of the joints that carry it.")
             return [Reading(item, "body", spec.body, note, "note"), Reading(item, "torque", spec.torque, note, "note")]
         act, t = self.model.actuator[k], self.model.tendon[k]
-        adr, num = m.tendon_adr[t], m.tendon_num[t]
-        row = np.zeros(m.nv)
-        for w in range(adr, adr + num):
-            if m.wrap_type[w] != mujoco.mjtWrap.mjWRAP_JOINT:
-                return [Reading(item, "body", f"tendon {t} is not over joints")]
-            row[m.jnt_dofadr[m.wrap_objid[w]]] += m.wrap_prm[w]
+        row = self.fixed_tendon_row(t)
+        if row is None:
+            return [Reading(item, "body", f"tendon {t} is not over joints")]
         if m.actuator_trntype[act] != mujoco.mjtTrn.mjTRN_TENDON or m.actuator_trnid[act, 0] != t:
             return [Reading(item, "body", f"actuator {act} does not act on tendon {t}")]
         body = next((b.name for b in self.mech.bodies if np.array_equal(self.jacobian(b.name)[1][2], row)),
@@ -362,12 +364,9 @@ class Reader:
         if m.actuator_trntype[act] != mujoco.mjtTrn.mjTRN_TENDON:
             return [Reading(item, "joint", f"actuator {act} does not act on a tendon")]
         t = m.actuator_trnid[act, 0]
-        adr, num = m.tendon_adr[t], m.tendon_num[t]
-        row = np.zeros(m.nv)
-        for w in range(adr, adr + num):
-            if m.wrap_type[w] != mujoco.mjtWrap.mjWRAP_JOINT:
-                return [Reading(item, "joint", f"tendon {t} is not over joints")]
-            row[m.jnt_dofadr[m.wrap_objid[w]]] += m.wrap_prm[w]
+        row = self.fixed_tendon_row(t)
+        if row is None:
+            return [Reading(item, "joint", f"tendon {t} is not over joints")]
         joint = next((j.name for j in self.mech.joints if j.kind == "revolute"
                       and np.array_equal(self.rate_row(j), row)), "no joint's relative angle")
         readings = [Reading(item, "joint", joint, "the tendon row equals the joint's ω_j − ω_i Jacobian row")]

@@ -219,9 +219,11 @@ class Model:
     def forward(self) -> tuple[pd.DataFrame, dict[str, Any]]:
         m, d = self.m, self.d
         state0, nstep = self.initial_state(), self.nstep
-        control = self.controls(nstep)
+        # Controls only for torque laws (8 B per actuator and step; the
+        # other actuators have no control gain).
+        control = self.controls(nstep)[None] if self.law_actuators else None
         start = time.perf_counter()
-        states = (rollout.rollout(m, d, state0[None, :], control[None], nstep=nstep)[0][0] if nstep
+        states = (rollout.rollout(m, d, state0[None, :], control, nstep=nstep)[0][0] if nstep
                   else np.empty((0, len(state0))))
         wall = time.perf_counter() - start
         # Sample k is the state after step preroll + k·substeps; states[i]

@@ -99,16 +99,14 @@ import numpy as np
 import pandas as pd
 
 from mechval.adapter import FEATURES, as_float, ceil_or_inf, steps_per_interval
-from mechval.dynamics import raw_dynamics
-from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step
 from mechval.mechanism import Mechanism
-from mechval.planar_constraints import MechanismError
 from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from .mujoco_audit import audit_model
 from .mujoco_model import INTEGRATORS, SOLIMP
-from .mujoco_run import Model, warnings_silenced
+from .mujoco_run import Model, reference_motion, warnings_silenced
 
 MODES = ("forward", "inverse")
 #: The forward-dynamics reference's tolerance when it only tells the step
@@ -124,13 +122,7 @@ def predicted_motion(mechanism: Mechanism) -> Mechanism:
     then describes no run)."""
     if not mechanism.forward_dynamics:
         return mechanism
-
-    def motion(t: np.ndarray):
-        try:
-            return raw_dynamics(mechanism, t, rtol=STEP_RATE_RTOL).frame
-        except MechanismError as exc:
-            raise Unrepresentable(exc.key, exc.reason) from None
-    return dataclasses.replace(mechanism, motion=motion)
+    return dataclasses.replace(mechanism, motion=lambda t: reference_motion(mechanism, t, STEP_RATE_RTOL))
 
 
 class MujocoAdapter(EngineAdapter):

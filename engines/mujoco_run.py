@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 from mujoco import rollout
 
-from mechval.dynamics import raw_dynamics
+from mechval.dynamics import RTOL, raw_dynamics
 from mechval.engines.base import Unrepresentable
 from mechval.kinematics import separation_gap, slide_axis
 from mechval.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
@@ -93,6 +93,18 @@ def compile_model(xml: str) -> mujoco.MjModel:
             raise Unrepresentable("engines.mujoco", f"MuJoCo cannot compile the model ({reason})") from None
 
 
+def reference_motion(mech: Mechanism, t: np.ndarray, rtol: float = RTOL) -> pd.DataFrame:
+    """The reference's raw columns at instants t: the prescribed motion, or
+    for a torque-driven or free mechanism the forward dynamics (at `rtol`)
+    from its initial values at t[0]; a refused initial state names its key."""
+    if not mech.forward_dynamics:
+        return mech.motion(t)
+    try:
+        return raw_dynamics(mech, t, rtol=rtol).frame
+    except MechanismError as exc:
+        raise Unrepresentable(exc.key, exc.reason) from None
+
+
 class Model:
     """A compiled MuJoCo model of the mechanism and its index maps."""
 
@@ -145,9 +157,7 @@ class Model:
         the reference loop closes, and the reference motion at its start
         (raw columns of one instant). A torque-driven or free run starts
         at the first instant from the forward-dynamics reference's
-        consistent state there."""
-        if self.mech.forward_dynamics:
-            return 0, raw_columns(self.reference_motion(self.times[:1]))
+        consistent state there (its pre-roll is 0)."""
         while preroll > 0:
             t = float(self.times[0]) - preroll * dt + dt * np.arange(preroll + 1)
             try:
@@ -158,20 +168,12 @@ class Model:
             except ValueError:                    # the reference refuses those instants
                 pass
             preroll //= 2
-        return 0, raw_columns(self.mech.motion(self.times[:1]))
+        return 0, raw_columns(self.reference_motion(self.times[:1]))
 
     # -- state from the reference ------------------------------------------------
 
     def reference_motion(self, t: np.ndarray) -> pd.DataFrame:
-        """The reference's raw columns at instants t: the prescribed motion,
-        or the forward dynamics from the mechanism's initial values at t[0]
-        (a refused initial state names its scene key)."""
-        if not self.mech.forward_dynamics:
-            return self.mech.motion(t)
-        try:
-            return raw_dynamics(self.mech, t).frame
-        except MechanismError as exc:
-            raise Unrepresentable(exc.key, exc.reason) from None
+        return reference_motion(self.mech, t)
 
     def set_reference(self, motion: Mapping[str, np.ndarray], row: int, coords) -> None:
         """Put the reference q, q̇, q̈ of instant `row` into the data."""

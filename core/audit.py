@@ -8,8 +8,8 @@ engine model must hold: per body mass, centre of mass (body frame) and izz
 per joint its kind, bodies, point on each body, a prismatic joint's axis
 (body_i frame) and locked relative rotation, and its damping; the drive
 (joint, φ0, ω0, α); each torque law (joint, torque, amplitude, frequency,
-phase); gravity (0 when the scene has none; z always 0); and a fixed list
-of effects that must be absent (`ABSENT_EFFECTS`).
+phase); gravity (0 when the scene has none; z always 0); and a
+fixed list of effects that must be absent (`ABSENT_EFFECTS`).
 
 Engine audits (`mechval.engines.*_audit`) build the model with the
 adapter's own build functions and return `Reading`s under the same
@@ -174,10 +174,10 @@ def expected_model(mech: Mechanism) -> list[Expectation]:
                  Expectation(item, "phi0", law.phi0, unit, size),
                  Expectation(item, "omega0", law.omega0, f"{unit}/s", size),
                  Expectation(item, "alpha", law.alpha, f"{unit}/s²", size)]
+    for law in mech.torque_drives:
+        rows += _torque_law_expectations(law)
     for force in mech.forces:
         rows += _force_expectations(force, length)
-    for law in mech.torque_drives:
-        rows += torque_law_expectations(law)
     g = float(np.hypot(*mech.gravity))
     rows += [Expectation(SCENE, "gravity x", mech.gravity[0], "m/s²", g),
              Expectation(SCENE, "gravity y", mech.gravity[1], "m/s²", g),
@@ -190,6 +190,21 @@ def drive_item(mech: Mechanism, drive: Drive) -> str:
     """The first drive's rows are "drive" (as before several drives); the
     others' "drive NAME"."""
     return DRIVE if drive == mech.drive else f"{DRIVE} {drive.name}"
+
+
+def torque_law_item(law: TorqueLaw) -> str:
+    return f"torque law {law.name}"
+
+
+def _torque_law_expectations(law: TorqueLaw) -> list[Expectation]:
+    """A torque law's joint and T(t) = torque + amplitude·sin(2π·frequency·t + phase)."""
+    item = torque_law_item(law)
+    size = max(abs(law.torque), abs(law.amplitude))
+    return [Expectation(item, "joint", law.joint),
+            Expectation(item, "torque", law.torque, "N·m", size),
+            Expectation(item, "amplitude", law.amplitude, "N·m", size),
+            Expectation(item, "frequency", law.frequency, "Hz", abs(law.frequency)),
+            Expectation(item, "phase", law.phase, "rad", 1.0)]
 
 
 def force_item(force: SpringDamper | BodyTorque) -> str:
@@ -210,21 +225,6 @@ def _force_expectations(force: SpringDamper | BodyTorque, length: float) -> list
     return rows + [Expectation(item, "stiffness", force.stiffness, "N/m", abs(force.stiffness)),
                    Expectation(item, "free length", force.free_length, "m", length),
                    Expectation(item, "damping", force.damping, "N·s/m", abs(force.damping))]
-
-
-def torque_law_item(law: TorqueLaw) -> str:
-    return f"torque law {law.name}"
-
-
-def torque_law_expectations(law: TorqueLaw) -> list[Expectation]:
-    """A torque law's joint and the parameters of T(t) = torque +
-    amplitude·sin(2π·frequency·t + phase); the torques to the law's size."""
-    item, size = torque_law_item(law), max(abs(law.torque), abs(law.amplitude))
-    return [Expectation(item, "joint", law.joint),
-            Expectation(item, "torque", law.torque, "N·m", size),
-            Expectation(item, "amplitude", law.amplitude, "N·m", size),
-            Expectation(item, "frequency", law.frequency, "Hz", abs(law.frequency)),
-            Expectation(item, "phase", law.phase, "rad", 1.0)]
 
 
 def _verdict(expected: Expectation, reading: Reading, rtol: float) -> tuple[str, float]:

@@ -217,6 +217,41 @@ def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapp
             "stream": stream.encoded()}
 
 
+#: The health measures the energy figure draws, whichever a run has
+#: (mechval.health: a conservative scene's drift, else the balance residual).
+ENERGY_MEASURES = ("energy_drift", "energy_balance")
+
+
+def energy_data(reference: Signals, results: Mapping[str, Signals], palette: Mapping[str, str]) -> dict | None:
+    """One scenario's energy against time for the page (data-kind "energy"):
+    per run, the reference's first, its energy E = kinetic + potential (J)
+    and its energy drift or balance residual (relative) from its health,
+    as entries of one code stream like `signal_data`; None when no run's
+    health has the energy series."""
+    runs = {"reference": (reference, "black"), **{label: (result, palette.get(label, PALETTE[0]))
+                                                  for label, result in results.items()}}
+    stream = _Stream()
+    drawn, measure = [], ""
+    for label, (result, colour) in runs.items():
+        health = result.health
+        if health is None or "energy" not in health:
+            continue
+        name = next(m for m in ENERGY_MEASURES if m in health)
+        measure = measure or name
+        energy, residual = health["energy"].to_numpy(dtype=float), health[name].to_numpy(dtype=float)
+        keep = _thinned(len(energy), energy, residual)
+        entry = {"label": label, "colour": colour, "t": [float(health["t"].iloc[0]), float(health["t"].iloc[-1]),
+                                                         len(energy)]}
+        if keep is not None:
+            energy, residual = energy[keep], residual[keep]
+            entry["samples"] = stream.samples(keep)
+        entry.update(energy=stream.linear(energy), residual=stream.log(residual))
+        drawn.append(entry)
+    if not drawn:
+        return None
+    return {"measure": measure, "runs": drawn, "stream": stream.encoded()}
+
+
 def mechanism_figure(mech: Mechanism, t_end: float, instants: int = 4) -> dict:
     """The linkage to scale at a few instants (a Plotly figure): every body
     as the polygon of its joint points, ground pivots as triangles, guides

@@ -99,6 +99,10 @@ class AdapterContract:
     #: Why the adapter builds no engine model to audit ("" when `audit` reads
     #: its model back): the audit test skips with this reason.
     without_model_audit: ClassVar[str] = ""
+    #: Why the adapter runs no torque-driven or free mechanism ("" when it
+    #: declares the features "torque laws" and "free motion"): the tests of
+    #: forward dynamics skip with this reason.
+    without_forward_dynamics: ClassVar[str] = ""
 
     @pytest.fixture
     def adapter(self):
@@ -271,6 +275,12 @@ class AdapterContract:
     # -- torque-driven and free motion -------------------------------------------
 
     def run_dynamic(self, adapter, name: str):
+        """Skip with the stated reason if the adapter builds no forward
+        dynamics (and check that it indeed declares neither feature)."""
+        if self.without_forward_dynamics:
+            assert not {"torque laws", "free motion"} & adapter.features, adapter.features
+            pytest.skip(self.without_forward_dynamics)
+        assert {"torque laws", "free motion"} <= adapter.features
         mech, times = dynamic_mechanism(name)
         raw = adapter.run(mech, times, adapter.default_settings(mech, times))
         return mech, times, raw.frame

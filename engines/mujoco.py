@@ -33,7 +33,7 @@ Modes (setting "mode"):
   but runs Python four times per step, process-wide, and rules out the
   rollout. The column "NAME.T" is the actuator's force read back at the
   sample. The default step takes Ω from the forward-dynamics reference at
-  rtol 1e-6 (`predicted_motion`): the mechanism's own `motion` describes
+  rtol 1e-6 (`planned_motion`): the mechanism's own `motion` describes
   no run there.
 - "inverse": `mj_inverse` at the reference q, q̇, q̈ with constraints off;
   qfrc_inverse is split by least squares into the drive torque on its
@@ -112,17 +112,17 @@ MODES = ("forward", "inverse")
 #: The forward-dynamics reference's tolerance when it only tells the step
 #: rule how fast a torque-driven or free mechanism moves (Ω within a few
 #: per cent is all the rule needs).
-STEP_RATE_RTOL = 1e-6
+RATE_RTOL = 1e-6
 
 
-def predicted_motion(mechanism: Mechanism) -> Mechanism:
+def planned_motion(mechanism: Mechanism) -> Mechanism:
     """The mechanism whose `motion` is what the step rule should look at:
     its prescribed motion, or for a torque-driven or free one the
     forward-dynamics reference from its initial state (its own `motion`
     then describes no run)."""
     if not mechanism.forward_dynamics:
         return mechanism
-    return dataclasses.replace(mechanism, motion=lambda t: reference_motion(mechanism, t, STEP_RATE_RTOL))
+    return dataclasses.replace(mechanism, motion=lambda t: reference_motion(mechanism, t, RATE_RTOL))
 
 
 class MujocoAdapter(EngineAdapter):
@@ -192,7 +192,7 @@ class MujocoAdapter(EngineAdapter):
         return {
             "mode": "forward",
             "integrator": "RK4",
-            "timestep": default_step(predicted_motion(mechanism), times),
+            "timestep": default_step(planned_motion(mechanism), times),
             "refine": 1,
             "solref_steps": 10.0,
             "drive_solref_steps": 1.0,

@@ -98,7 +98,18 @@ class Reader:
         out += [r for k, drive in enumerate(self.mech.drives) for r in self.drive(k, drive)]
         out += [r for k, force in enumerate(self.mech.forces) for r in self.force(k, force)]
         out += [r for k, law in enumerate(self.mech.torque_drives) for r in self.torque_law(k, law)]
+        out += [self.prescribed_motion(v.joint) for v in self.mech.initial_values]
         return out + self.scene(other_dampers) + self.notes()
+
+    def prescribed_motion(self, joint: str) -> Reading:
+        """The joint equalities that tie a joint integrated from its initial
+        value to anything (none expected: a drive's equality on it would
+        prescribe its motion)."""
+        m, jid = self.m, self.model.jid.get(joint)
+        found = [f"equality {eq}" for eq in range(m.neq) if m.eq_type[eq] == mujoco.mjtEq.mjEQ_JOINT
+                 and jid is not None and jid in (int(m.eq_obj1id[eq]), int(m.eq_obj2id[eq]))]
+        return Reading(joint_item(joint), "prescribed motion", listing(found),
+                       "joint equalities on the joint's MuJoCo joint")
 
     # -- bodies -------------------------------------------------------------------
 

@@ -11,20 +11,24 @@
     return parsed.get(id);
   }
 
+  // Inverse of plots.deflated: the bytes of base64, deflated text.
+  async function inflate(text) {
+    const packed = Uint8Array.from(atob(text), c => c.charCodeAt(0));
+    const inflated = new Response(new Blob([packed]).stream().pipeThrough(new DecompressionStream("deflate")));
+    return new Uint8Array(await inflated.arrayBuffer());
+  }
+
   // Inverse of plots.encode_stream: inflate, low and high byte planes,
   // running sum modulo 2^16. One Uint16Array per scenario, decoded once.
   const streams = new Map();
-  async function codeStream(data) {
+  function codeStream(data) {
     if (!streams.has(data)) {
-      streams.set(data, (async () => {
-        const packed = Uint8Array.from(atob(data.stream), c => c.charCodeAt(0));
-        const inflated = new Response(new Blob([packed]).stream().pipeThrough(new DecompressionStream("deflate")));
-        const planes = new Uint8Array(await inflated.arrayBuffer());
+      streams.set(data, inflate(data.stream).then(planes => {
         const n = planes.length / 2, codes = new Uint16Array(n);
         let sum = 0;
         for (let i = 0; i < n; i++) { sum = (sum + (planes[i] | (planes[n + i] << 8))) & 0xffff; codes[i] = sum; }
         return codes;
-      })());
+      }));
     }
     return streams.get(data);
   }
@@ -110,18 +114,21 @@
   const hiddenEngines = new Set();
   function engineOf(label) { return label.split(" [")[0]; }
 
-  // plotly.js arrives as text (plots.page_scripts); an inline script runs
-  // as soon as it is inserted.
+  // plotly.js arrives deflated (plots.page_scripts); an inline script runs
+  // as soon as it is inserted. Inflated and run once, on the first draw.
+  let plotly = null;
   function loadPlotly() {
-    if (window.Plotly) return;
-    const script = document.createElement("script");
-    script.textContent = document.getElementById("plotly-js").textContent;
-    document.head.appendChild(script);
+    plotly = plotly || inflate(document.getElementById("plotly-js").textContent).then(bytes => {
+      const script = document.createElement("script");
+      script.textContent = new TextDecoder().decode(bytes);
+      document.head.appendChild(script);
+    });
+    return plotly;
   }
 
   async function draw(element) {
     const figure = await figureFor(element);
-    loadPlotly();
+    await loadPlotly();
     if (element.dataset.group) {
       figure.data.forEach(trace => {
         if (trace.legendgroup && hiddenEngines.has(engineOf(trace.legendgroup))) trace.visible = "legendonly";
@@ -166,11 +173,9 @@
     document.querySelectorAll("#filter input[data-verdict]").forEach(box => {
       if (box.checked) verdicts.add(box.dataset.verdict);
     });
-    document.querySelectorAll("tr[data-verdict]").forEach(row => {
-      row.hidden = !(engines.has(row.dataset.engine) && verdicts.has(row.dataset.verdict));
-    });
     document.querySelectorAll(".run[data-engine]").forEach(run => {
-      run.hidden = !run.querySelector("tr[data-verdict]:not([hidden])");
+      run.querySelectorAll("tr[data-verdict]").forEach(row => { row.hidden = !verdicts.has(row.dataset.verdict); });
+      run.hidden = !engines.has(run.dataset.engine) || !run.querySelector("tr[data-verdict]:not([hidden])");
     });
     document.querySelectorAll("section.scenario").forEach(section => {
       const shown = !!section.querySelector(".run:not([hidden])");

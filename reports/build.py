@@ -244,7 +244,7 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
             failures=int(records[records["verdict"] == "fail"].groupby(["scenario", "engine", "setting"]).ngroups),
             engines=list(dict.fromkeys(records["engine"])), verdicts=VERDICTS,
             record_columns=RECORD_COLUMNS, text_columns=TEXT_COLUMNS, extra_sections=extra_sections,
-            scripts=plots.page_scripts())
+            per_figure=plots.SIGNALS_PER_FIGURE, scripts=plots.page_scripts())
         (folder / "index.html").write_text(html, encoding="utf-8")
         records.to_csv(folder / "discrepancies.csv", index=False, float_format="%.17g")
         (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta), encoding="utf-8")

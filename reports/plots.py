@@ -31,8 +31,9 @@ from mechval.kinematics import point_position, rotate
 from mechval.mechanism import GROUND, Mechanism
 from mechval.signals import SIGNAL_CLASS, Signals
 
-UNITS = {"angle": "rad", "position": "m", "velocity": "rad/s | m/s", "acceleration": "rad/s² | m/s²",
-         "force": "N", "torque": "N·m"}
+UNITS = {"angle": "rad", "position": "m", "velocity": "m/s", "acceleration": "m/s²", "force": "N", "torque": "N·m"}
+#: Units of a body's rates (theta2, omega2, B.alpha: the quantity after the last dot).
+ANGULAR_UNITS = {"velocity": "rad/s", "acceleration": "rad/s²"}
 #: Windows a long run is thinned to (min and max of each): about as many
 #: as a plot is pixels wide, so the thinned trace looks like the full one.
 DISPLAY_WINDOWS = 500
@@ -42,6 +43,10 @@ DISPLAY_WHOLE = 4000
 #: Decades below a trace's largest error that are still drawn: float64
 #: carries ~16, so anything further down is rounding, not information.
 LOG_DECADES = 20.0
+#: Signals per overlay or error figure: a scene of many signals (a six-bar
+#: has 60) gets several figures, each drawn when it scrolls into view
+#: (Plotly took ~3 s to draw 84 subplots at once).
+SIGNALS_PER_FIGURE = 18
 #: Engine colours in the order runs first appear on the page (the
 #: reference is black); Plotly's default colour sequence.
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
@@ -174,6 +179,12 @@ class _Stream:
         return encode_stream(np.concatenate(self.parts) if self.parts else np.zeros(0, np.uint16))
 
 
+def unit(signal: str) -> str:
+    cls = SIGNAL_CLASS[signal]
+    angular = signal.rpartition(".")[2].startswith(("omega", "alpha"))
+    return ANGULAR_UNITS[cls] if angular and cls in ANGULAR_UNITS else UNITS[cls]
+
+
 def colours(labels) -> dict[str, str]:
     """A colour per run label, in order of first appearance."""
     return {label: PALETTE[k % len(PALETTE)] for k, label in enumerate(dict.fromkeys(labels))}
@@ -194,7 +205,7 @@ def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapp
         entry = {"values": stream.linear(reference[name] if keep is None else reference[name][keep])}
         if keep is not None:
             entry["samples"] = stream.samples(keep)
-        signals.append({"name": name, "unit": UNITS[SIGNAL_CLASS[name]], "reference": entry})
+        signals.append({"name": name, "unit": unit(name), "reference": entry})
     runs = []
     for label, result in results.items():
         traces = {}

@@ -13,7 +13,8 @@
 
   // Inverse of plots.deflated: the bytes of base64, deflated text.
   async function inflate(text) {
-    const packed = Uint8Array.from(atob(text), c => c.charCodeAt(0));
+    const binary = atob(text), packed = new Uint8Array(binary.length);
+    for (let i = 0; i < binary.length; i++) packed[i] = binary.charCodeAt(i);
     const inflated = new Response(new Blob([packed]).stream().pipeThrough(new DecompressionStream("deflate")));
     return new Uint8Array(await inflated.arrayBuffer());
   }
@@ -49,13 +50,13 @@
     return Uint32Array.from(part, gap => (index += gap));
   }
 
-  // One scenario's signals as overlay and error figures: a grid of
+  // Some of a scenario's signals as an overlay or error figure: a grid of
   // subplots sharing the time axis, one legend entry per run.
-  function signalFigure(data, codes, kind) {
+  function signalFigure(data, codes, kind, signals) {
     const [t0, t1, n] = data.t;
     const time = i => t0 + (t1 - t0) * i / (n - 1);
     const full = Float64Array.from({length: n}, (_, i) => time(i));
-    const columns = 3, rows = Math.ceil(data.signals.length / columns);
+    const columns = 3, rows = Math.ceil(signals.length / columns);
     const traces = [], annotations = [];
     const layout = {
       grid: {rows: rows, columns: columns, pattern: "independent", xgap: 0.12, ygap: 0.35},
@@ -63,7 +64,7 @@
       legend: {orientation: "h", x: 0, y: 1, yanchor: "top", yref: "container"},
       hovermode: "closest", annotations: annotations,
     };
-    data.signals.forEach((signal, k) => {
+    signals.forEach((signal, k) => {
       const axis = k === 0 ? "" : String(k + 1);
       const xaxis = "x" + axis, yaxis = "y" + axis;
       layout["xaxis" + axis] = k === 0 ? {} : {matches: "x"};
@@ -108,14 +109,17 @@
 
   async function figureFor(element) {
     const data = figureData(element.dataset.figure);
-    return element.dataset.kind === "plotly" ? data : signalFigure(data, await codeStream(data), element.dataset.kind);
+    if (element.dataset.kind === "plotly") return data;
+    const [first, stop] = element.dataset.signals.split("-").map(Number);   // this figure's share of the signals
+    return signalFigure(data, await codeStream(data), element.dataset.kind, data.signals.slice(first, stop));
   }
 
   const hiddenEngines = new Set();
   function engineOf(label) { return label.split(" [")[0]; }
 
   // plotly.js arrives deflated (plots.page_scripts); an inline script runs
-  // as soon as it is inserted. Inflated and run once, on the first draw.
+  // as soon as it is inserted. Inflated and run once: on the first draw, or
+  // just after the page has loaded, whichever comes first.
   let plotly = null;
   function loadPlotly() {
     plotly = plotly || inflate(document.getElementById("plotly-js").textContent).then(bytes => {
@@ -211,4 +215,5 @@
     });
     open(decodeURIComponent(location.hash.slice(1)));
   });
+  window.addEventListener("load", () => setTimeout(loadPlotly, 0));
 })();

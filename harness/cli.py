@@ -29,7 +29,7 @@ from mechval.reports.stability import stability_section
 from mechval.outcome import Outcome
 from mechval.scenario import Scenario, ScenarioError, one_line
 from mechval.scenarios import builtin_names, load
-from mechval.signals import SIGNAL_CLASS
+from mechval.signals import SIGNAL_CLASS, Signals
 
 from .audit_run import audit_all, audit_scenario
 from .baseline import UnsafeName
@@ -224,10 +224,12 @@ def _untimed(name: str):
 
 @dataclass(frozen=True)
 class RunReport:
-    """What `mechval run` did: its scenarios, the engine runs' outcomes,
-    their discrepancy records and the report folder written."""
+    """What `mechval run` did: its scenarios and their references, the
+    engine runs' outcomes, their discrepancy records and the report folder
+    written."""
 
     scenarios: list[Scenario]
+    references: dict[str, Signals]
     outcomes: list[Outcome]
     records: pd.DataFrame
     folder: Path
@@ -274,12 +276,12 @@ def run_and_report(args, phase: Callable[[str], ContextManager] = _untimed) -> R
             files = {"cost.csv": lambda path: write_table(table, path)}
     with phase("report: page and files"):
         write_report(out, scenarios, references, outcomes, records, sections, files)
-    return RunReport(scenarios, outcomes, records, out)
+    return RunReport(scenarios, references, outcomes, records, out)
 
 
 def cmd_run(args) -> int:
     run = run_and_report(args)
-    print(summary_markdown(run.records, run.scenarios, provenance()))
+    print(summary_markdown(run.records, run.scenarios, provenance(), run.references))
     print(f"report: {run.folder / 'index.html'}")
     return 0 if passed(run.records) else 1
 

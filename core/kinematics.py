@@ -168,8 +168,13 @@ def step_rate(mechanism: Mechanism, times: np.ndarray, dense: int = 20001) -> fl
 
     Speed alone misjudges sharp motion at moderate speed (near the Grashof
     change point), hence the α and jerk terms (docs/engines.md, "step rule").
+    Computed once per mechanism (`Mechanism.derive`).
     """
-    t = np.linspace(float(times[0]), float(times[-1]), dense)
+    t0, t1 = float(times[0]), float(times[-1])
+    return mechanism.derive(("step_rate", t0, t1, dense), lambda: _step_rate(mechanism, np.linspace(t0, t1, dense)))
+
+
+def _step_rate(mechanism: Mechanism, t: np.ndarray) -> float:
     motion = mechanism.motion(t)
     rate = 0.0
     for body in mechanism.bodies:

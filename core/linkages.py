@@ -4,6 +4,7 @@ check_closure, kinematics, body_motion, build_mechanism)."""
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from types import ModuleType
 
 from . import fourbar, inverted_slider, slider_crank, slotted_lever
@@ -19,9 +20,28 @@ def linkage(kind: str) -> ModuleType:
     return LINKAGES[kind]
 
 
+#: The mechanisms of the last scenarios built, by the scenario's identity
+#: (a Scenario holds dicts, so it has no hash; the entry keeps it alive, so
+#: its id is not reused while it is here). Planning, the limits check and
+#: the model audit of one run all ask for the same scenario's mechanism,
+#: and what is derived from it (`Mechanism.derived`) is then computed once.
+_BUILT: OrderedDict[int, tuple[Scenario, Mechanism]] = OrderedDict()
+_BUILT_KEPT = 64
+
+
 def build_mechanism(scenario: Scenario) -> Mechanism:
     """The generic `Mechanism` of a validated scenario (a planar file's
-    from its bodies and joints, `mechval.planar_scene`)."""
+    from its bodies and joints, `mechval.planar_scene`); the same object
+    for the same scenario object while it is among the last built."""
+    kept = _BUILT.get(id(scenario))
+    if kept is not None and kept[0] is scenario:
+        _BUILT.move_to_end(id(scenario))
+        return kept[1]
     if scenario.mechanism == "planar":
-        return build_planar(scenario)
-    return LINKAGES[scenario.mechanism].build_mechanism(scenario)
+        mechanism = build_planar(scenario)
+    else:
+        mechanism = LINKAGES[scenario.mechanism].build_mechanism(scenario)
+    _BUILT[id(scenario)] = (scenario, mechanism)
+    if len(_BUILT) > _BUILT_KEPT:
+        _BUILT.popitem(last=False)
+    return mechanism

@@ -35,3 +35,6 @@ class Outcome:
     signals: Signals | None
     error: str = ""
     wall_time: float = 0.0
+    #: CPU time of the run's worker process (s): unlike the wall time, not
+    #: stretched by other work sharing the machine.
+    cpu_time: float = 0.0

@@ -82,8 +82,13 @@ def scene_motion(mechanism: Mechanism) -> Mechanism:
 
 def force_scale(mechanism: Mechanism, times: np.ndarray, dense: int = 2001) -> float:
     """Peak over the run of Σ m·|a_G − g| (N): the size of the forces the
-    Newton residual is made of."""
-    t = np.linspace(float(times[0]), float(times[-1]), dense)
+    Newton residual is made of; computed once per mechanism."""
+    t0, t1 = float(times[0]), float(times[-1])
+    return mechanism.derive(("exudyn.force_scale", t0, t1, dense),
+                            lambda: _force_scale(mechanism, np.linspace(t0, t1, dense)))
+
+
+def _force_scale(mechanism: Mechanism, t: np.ndarray) -> float:
     motion = mechanism.motion(t)
     total = np.zeros_like(t)
     for body in mechanism.bodies:

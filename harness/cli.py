@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import os
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable, ContextManager
 
+import pandas as pd
 from tqdm import tqdm
 
 from mechval.analysis import analyse, format_analysis
@@ -22,9 +26,10 @@ from mechval.reports.cost_report import cost_section, write_cost_report, write_t
 from mechval.reports.audit import audit_section
 from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
-from mechval.scenario import ScenarioError, one_line
+from mechval.outcome import Outcome
+from mechval.scenario import Scenario, ScenarioError, one_line
 from mechval.scenarios import builtin_names, load
-from mechval.signals import SIGNAL_CLASS
+from mechval.signals import SIGNAL_CLASS, Signals
 
 from .audit_run import audit_all, audit_scenario
 from .baseline import UnsafeName
@@ -213,45 +218,72 @@ def cmd_cost(args) -> int:
     return 0
 
 
-def report_sections(records, scenarios, engines) -> list:
-    """The run report's sections after the summary: stability of the hard
-    cases, the engine findings measured on the installed versions, and the
-    model audit (which builds the models again and simulates nothing)."""
-    sections = (stability_section(records, scenarios), findings_section(measure_findings(engines)),
-                audit_section(audit_all(scenarios, engines)))
-    return [s for s in sections if s]
+def _untimed(name: str):
+    return contextlib.nullcontext()
 
 
-def cmd_run(args) -> int:
-    scenarios = _scenarios(args.scenarios, args.skip_hard)
-    engines = _engines(args.engine)
-    tasks = tasks_for(scenarios, engines)
-    _check_runs([(t.scenario, t.engine, t.overrides) for t in tasks], _limits(args))
-    if args.cost:
-        _check_runs([(p.scenario, p.engine, p.overrides) for s in scenarios for e in engines
-                     for p in points_for(s, e)], _limits(args))
-    out = args.out or default_out_dir()
-    _check_out_dir(out)
-    references = references_for(scenarios)
-    with tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
-              disable=args.quiet) as bar:
+@dataclass(frozen=True)
+class RunReport:
+    """What `mechval run` did: its scenarios and their references, the
+    engine runs' outcomes, their discrepancy records and the report folder
+    written."""
+
+    scenarios: list[Scenario]
+    references: dict[str, Signals]
+    outcomes: list[Outcome]
+    records: pd.DataFrame
+    folder: Path
+
+
+def run_and_report(args, phase: Callable[[str], ContextManager] = _untimed) -> RunReport:
+    """`mechval run`'s work, phase by phase (tests/bench/run_bench.py passes
+    `phase` to time each one)."""
+    with phase("load scenarios and engines"):
+        scenarios = _scenarios(args.scenarios, args.skip_hard)
+        engines = _engines(args.engine)
+    with phase("plan runs: settings, limits"):
+        tasks = tasks_for(scenarios, engines)
+        _check_runs([(t.scenario, t.engine, t.overrides) for t in tasks], _limits(args))
+        if args.cost:
+            _check_runs([(p.scenario, p.engine, p.overrides) for s in scenarios for e in engines
+                         for p in points_for(s, e)], _limits(args))
+        out = args.out or default_out_dir()
+        _check_out_dir(out)
+    with phase("reference"):
+        references = references_for(scenarios)
+    with phase("engine runs"), tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
+                                    disable=args.quiet) as bar:
         def done(outcome):
             bar.set_postfix_str(one_line(outcome.task.label, 80) + (" FAILED" if outcome.error else ""),
                                 refresh=False)
             bar.update()
-        outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout,
-                             on_done=done)
-    records = discrepancies(outcomes, references)
-    sections = report_sections(records, scenarios, engines)
+        outcomes = run_tasks(tasks, workers=_workers(args), timeout=args.timeout, on_done=done)
+    with phase("comparison"):
+        records = discrepancies(outcomes, references)
+    # The report: stability of the hard cases, the engine findings measured
+    # on the installed versions, the model audit (which builds the models
+    # again and simulates nothing), then the page and its files.
+    with phase("report: stability, findings"):
+        sections = [stability_section(records, scenarios), findings_section(measure_findings(engines))]
+    with phase("report: model audit"):
+        sections.append(audit_section(audit_all(scenarios, engines)))
+    sections, files = [s for s in sections if s], None
     if args.cost:
-        table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
-                                           quick=False, repeats=3, quiet=args.quiet)
-        sections.append(cost_section(table, orders, cheap))
-        files = {"cost.csv": lambda path: write_table(table, path)}
-    write_report(out, scenarios, references, outcomes, records, sections, files if args.cost else None)
-    print(summary_markdown(records, scenarios, provenance(), references))
-    print(f"report: {out / 'index.html'}")
-    return 0 if passed(records) else 1
+        with phase("cost sweep"):
+            table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
+                                               quick=False, repeats=3, quiet=args.quiet)
+            sections.append(cost_section(table, orders, cheap))
+            files = {"cost.csv": lambda path: write_table(table, path)}
+    with phase("report: page and files"):
+        write_report(out, scenarios, references, outcomes, records, sections, files)
+    return RunReport(scenarios, references, outcomes, records, out)
+
+
+def cmd_run(args) -> int:
+    run = run_and_report(args)
+    print(summary_markdown(run.records, run.scenarios, provenance(), run.references))
+    print(f"report: {run.folder / 'index.html'}")
+    return 0 if passed(run.records) else 1
 
 
 def parse_signal_rtol(items: list[str] | None) -> dict[str, float]:

@@ -28,9 +28,11 @@ from mechval.signals import Signals, write_folder_atomically
 from . import plots
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
-RECORD_COLUMNS = ["engine", "setting", "signal", "max_error", "t_max", "rms_error", "relative_error", "bound",
-                  "ratio", "verdict", "missing", "reason", *GROWTH_COLUMNS]
-TEXT_COLUMNS = {"engine", "setting", "signal", "verdict", "reason"}
+#: The columns of a run's records on the page (its heading names the
+#: engine and setting; discrepancies.csv has every column).
+RECORD_COLUMNS = ["signal", "max_error", "t_max", "rms_error", "relative_error", "bound", "ratio", "verdict",
+                  "missing", "reason", *GROWTH_COLUMNS]
+TEXT_COLUMNS = {"signal", "verdict", "reason"}
 #: Record verdicts the page filters by (mechval.compare).
 VERDICTS = ("fail", "pass", "missing")
 
@@ -205,7 +207,7 @@ def _run_groups(scenario: Scenario, records: pd.DataFrame) -> list[dict]:
     groups = []
     for run, group in by_run(records).items():
         engine = group["engine"].iloc[0]
-        rows = [dict(engine=engine, verdict=r["verdict"], cells={c: _fmt(r[c]) for c in RECORD_COLUMNS},
+        rows = [dict(verdict=r["verdict"], cells={c: _fmt(r[c]) for c in RECORD_COLUMNS},
                      override=notes.get(engine, {}).get(_bound_class(r["signal"], r["class"]), ""))
                 for _, r in group.iterrows()]
         groups.append(dict(label=run, engine=engine, anchor=run_anchor(scenario.name, run), verdict=_verdict(group),
@@ -250,7 +252,8 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
     meta = provenance()
 
     def fill(folder: Path) -> None:
-        env = Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html", "j2"]))
+        env = Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html", "j2"]),
+                          trim_blocks=True, lstrip_blocks=True)
         palette = plots.colours(label(e, s) for e, s in zip(records["engine"], records["setting"]))
         sections = [_scenario_section(s, references[s.name], [o for o in outcomes if o.task.scenario.name == s.name],
                                       records, palette) for s in scenarios]
@@ -261,7 +264,7 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
             failures=int(records[records["verdict"] == "fail"].groupby(["scenario", "engine", "setting"]).ngroups),
             engines=list(dict.fromkeys(records["engine"])), verdicts=VERDICTS,
             record_columns=RECORD_COLUMNS, text_columns=TEXT_COLUMNS, extra_sections=extra_sections,
-            scripts=plots.page_scripts())
+            per_figure=plots.SIGNALS_PER_FIGURE, scripts=plots.page_scripts())
         (folder / "index.html").write_text(html, encoding="utf-8")
         records.to_csv(folder / "discrepancies.csv", index=False, float_format="%.17g")
         (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta, references), encoding="utf-8")

@@ -1,7 +1,7 @@
 """Figures of a report as data that the page draws in the browser with
 Plotly (zoom, hover values, an engine's traces toggled from the legend).
 
-plotly.js is inlined once per page (`page_scripts`), with the small script
+plotly.js is inlined once per page, deflated (`page_scripts`), with the small script
 `templates/report.js` that draws each figure when it scrolls into view. A
 figure is JSON inside `<script type="application/json">` (Jinja's `tojson`
 escapes `<`, `>` and `&`, so no text can close the script element).
@@ -31,8 +31,9 @@ from mechval.kinematics import point_position, rotate
 from mechval.mechanism import GROUND, Mechanism, SpringDamper
 from mechval.signals import SIGNAL_CLASS, Signals
 
-UNITS = {"angle": "rad", "position": "m", "velocity": "rad/s | m/s", "acceleration": "rad/s² | m/s²",
-         "force": "N", "torque": "N·m"}
+UNITS = {"angle": "rad", "position": "m", "velocity": "m/s", "acceleration": "m/s²", "force": "N", "torque": "N·m"}
+#: Units of a body's rates (theta2, omega2, B.alpha: the quantity after the last dot).
+ANGULAR_UNITS = {"velocity": "rad/s", "acceleration": "rad/s²"}
 #: Windows a long run is thinned to (min and max of each): about as many
 #: as a plot is pixels wide, so the thinned trace looks like the full one.
 DISPLAY_WINDOWS = 500
@@ -42,6 +43,10 @@ DISPLAY_WHOLE = 4000
 #: Decades below a trace's largest error that are still drawn: float64
 #: carries ~16, so anything further down is rounding, not information.
 LOG_DECADES = 20.0
+#: Signals per overlay or error figure: a scene of many signals (a six-bar
+#: has 60) gets several figures, each drawn when it scrolls into view
+#: (Plotly took ~3 s to draw 84 subplots at once).
+SIGNALS_PER_FIGURE = 18
 #: Engine colours in the order runs first appear on the page (the
 #: reference is black); Plotly's default colour sequence.
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
@@ -130,8 +135,7 @@ def encode_stream(codes: np.ndarray) -> str:
     base64."""
     words = codes.view(np.uint16) if codes.dtype.itemsize == 2 else codes.astype(np.uint16)
     steps = np.diff(words, prepend=np.uint16(0))         # wraps modulo 2¹⁶, as intended
-    planes = np.concatenate([steps & 0xFF, steps >> 8]).astype(np.uint8)
-    return base64.b64encode(zlib.compress(planes.tobytes(), 9)).decode("ascii")
+    return deflated(np.concatenate([steps & 0xFF, steps >> 8]).astype(np.uint8).tobytes())
 
 
 def decode_stream(text: str) -> np.ndarray:
@@ -175,6 +179,12 @@ class _Stream:
         return encode_stream(np.concatenate(self.parts) if self.parts else np.zeros(0, np.uint16))
 
 
+def unit(signal: str) -> str:
+    cls = SIGNAL_CLASS[signal]
+    angular = signal.rpartition(".")[2].startswith(("omega", "alpha"))
+    return ANGULAR_UNITS[cls] if angular and cls in ANGULAR_UNITS else UNITS[cls]
+
+
 def colours(labels) -> dict[str, str]:
     """A colour per run label, in order of first appearance."""
     return {label: PALETTE[k % len(PALETTE)] for k, label in enumerate(dict.fromkeys(labels))}
@@ -195,7 +205,7 @@ def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapp
         entry = {"values": stream.linear(reference[name] if keep is None else reference[name][keep])}
         if keep is not None:
             entry["samples"] = stream.samples(keep)
-        signals.append({"name": name, "unit": UNITS[SIGNAL_CLASS[name]], "reference": entry})
+        signals.append({"name": name, "unit": unit(name), "reference": entry})
     runs = []
     for label, result in results.items():
         traces = {}
@@ -297,18 +307,22 @@ def mechanism_figure(mech: Mechanism, t_end: float, instants: int = 4) -> dict:
     return {"data": traces, "layout": layout}
 
 
+def deflated(data: bytes) -> str:
+    """Bytes for the page as text: deflated (zlib), base64. report.js
+    inflates them with the browser's DecompressionStream."""
+    return base64.b64encode(zlib.compress(data, 9)).decode("ascii")
+
+
 @lru_cache(maxsize=1)
 def _plotly_js() -> str:
     from plotly.offline import get_plotlyjs
-    js = get_plotlyjs()
-    if "</script" in js.lower():     # inlined as it is, so it must not end its own element
-        raise ValueError("plotly.js contains '</script'; it cannot be inlined")
-    return js
+    return deflated(get_plotlyjs().encode("utf-8"))
 
 
 def page_scripts() -> Markup:
     """plotly.js and the page's own script, inlined once per page. plotly.js
-    comes as inert text that report.js runs when the first figure is drawn:
-    compiling its ~5 MB would otherwise hold up the opening of the page."""
+    comes deflated (4.8 MB of script, 2.0 MB on the page), as inert text
+    that report.js inflates and runs when the first figure is drawn:
+    compiling it would otherwise hold up the opening of the page."""
     own = (Path(__file__).resolve().parent / "templates" / "report.js").read_text(encoding="utf-8")
     return Markup(f'<script type="text/plain" id="plotly-js">{_plotly_js()}</script>\n<script>{own}</script>')

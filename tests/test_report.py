@@ -27,7 +27,8 @@ from mechval.scenarios import parse
 from mechval.signals import Signals
 from scenario_data import slider_crank
 
-HOSTILE = 'Slider <b>bold</b> & <script>document.title="pwned"</script> "quoted"'
+HOSTILE = ('Slider <b>bold</b> & <script>document.title="pwned"</script> "quoted" '
+           '<img src=x onerror="document.title=\'pwned\'">')
 #: An engine name that would end a <script> element if it were not escaped
 #: (the report passes run labels to the page's script as JSON).
 HOSTILE_ENGINE = '</script><script>document.title="pwned"</script>'
@@ -244,27 +245,29 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 @pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (make test tries apt-get)")
 def test_report_in_a_real_browser(report):
-    """No console errors; hostile text shows as text and no script of it
-    runs; the failing scenario's plots draw the signals; clicking an engine
-    in a legend hides its traces in both figures; a matrix cell leads to its
-    run's records; the filter hides an engine's rows and traces."""
+    """Offline, the page asks for nothing but itself and logs no error;
+    hostile text shows as text and no script of it runs; the failing
+    scenario's plots draw the signals; clicking an engine in a legend hides
+    its traces in both figures; a matrix cell leads to its run's records;
+    an override's reason is shown in its run's records, beside the bound;
+    the filter hides an engine's records and traces, and records by verdict."""
     from playwright.sync_api import sync_playwright
 
-    out, _ = report
+    out, records = report
     section = "#s-test-slider"
     overlays, errors_plot = f"{section} .plot[data-kind=overlays]", f"{section} .plot[data-kind=errors]"
     shown = ("([selector, group]) => document.querySelector(selector).data"
              ".filter(t => t.legendgroup === group && t.visible !== 'legendonly').length")
-    errors = []
+    errors, requests = [], []
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=[
             "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
             "--disable-sync", "--no-first-run"])
         try:
-            page = browser.new_page(viewport={"width": 1300, "height": 1000})
+            page = browser.new_context(viewport={"width": 1300, "height": 1000}, offline=True).new_page()
             page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
             page.on("pageerror", lambda e: errors.append(str(e)))
-            page.on("requestfailed", lambda r: errors.append(f"request failed: {r.url}"))
+            page.on("request", lambda r: requests.append(r.url))
             page.goto((out / "index.html").as_uri())
             title = page.title()
             description = page.inner_text("p.description")
@@ -283,15 +286,19 @@ def test_report_in_a_real_browser(report):
             paths_after = page.locator(f"{overlays} .scatterlayer .trace").count()
             page.locator(".matrix a[href='#s-test-slider--nonfinite']").click()
             jumped = page.locator("#s-test-slider--nonfinite").bounding_box()
+            overridden = page.locator("#s-test-slider--mujoco")
+            override_head = overridden.locator("tr.run-head").inner_text()
+            force_bound = overridden.evaluate(
+                "run => [...run.rows].find(r => r.cells[0].innerText === 'F32x').cells[5].innerText")
             page.locator("#filter input[data-engine=faithful]").uncheck()
-            faithful_rows = page.locator("tr[data-engine=faithful]").evaluate_all("rows => rows.map(r => r.hidden)")
+            faithful_hidden = page.locator("tbody[data-engine=faithful]").evaluate_all("runs => runs.map(r => r.hidden)")
             faithful_traces = page.evaluate(shown, [overlays, "faithful"])
             page.locator("#filter input[data-verdict=pass]").uncheck()
             rows = page.locator("tr[data-verdict]").evaluate_all(
                 "rows => rows.filter(r => !r.hidden).map(r => r.dataset.verdict)")
         finally:
             browser.close()
-    assert errors == []
+    assert errors == [] and requests == [(out / "index.html").as_uri()]
     assert "pwned" not in title
     assert description == HOSTILE and HOSTILE_ENGINE in headers
     reference = simulate_reference(parse(slider_crank(time={"end": 0.5, "samples": 51}), "x"))["F12y"]
@@ -300,5 +307,8 @@ def test_report_in_a_real_browser(report):
     assert before[0] == 17 and before[1] >= 17 and after == [0, 0]      # 17 signals; errors add bound lines
     assert paths_after == paths - 17
     assert jumped is not None and -2 < jumped["y"] < 1000      # scrolled into view
-    assert faithful_rows and all(faithful_rows) and faithful_traces == 0
+    assert f"mujoco override: force 0.02 (scenario 0.01): {FORCE_REASON}" in override_head
+    f32x = records[(records["engine"] == "mujoco") & (records["signal"] == "F32x")].iloc[0]
+    assert f32x["tolerance"] == 0.02 and force_bound == f"{f32x['bound']:.3g} † override"   # the bound column
+    assert faithful_hidden == [True] and faithful_traces == 0
     assert rows and set(rows) == {"fail"}

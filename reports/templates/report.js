@@ -11,20 +11,25 @@
     return parsed.get(id);
   }
 
+  // Inverse of plots.deflated: the bytes of base64, deflated text.
+  async function inflate(text) {
+    const binary = atob(text), packed = new Uint8Array(binary.length);
+    for (let i = 0; i < binary.length; i++) packed[i] = binary.charCodeAt(i);
+    const inflated = new Response(new Blob([packed]).stream().pipeThrough(new DecompressionStream("deflate")));
+    return new Uint8Array(await inflated.arrayBuffer());
+  }
+
   // Inverse of plots.encode_stream: inflate, low and high byte planes,
   // running sum modulo 2^16. One Uint16Array per scenario, decoded once.
   const streams = new Map();
-  async function codeStream(data) {
+  function codeStream(data) {
     if (!streams.has(data)) {
-      streams.set(data, (async () => {
-        const packed = Uint8Array.from(atob(data.stream), c => c.charCodeAt(0));
-        const inflated = new Response(new Blob([packed]).stream().pipeThrough(new DecompressionStream("deflate")));
-        const planes = new Uint8Array(await inflated.arrayBuffer());
+      streams.set(data, inflate(data.stream).then(planes => {
         const n = planes.length / 2, codes = new Uint16Array(n);
         let sum = 0;
         for (let i = 0; i < n; i++) { sum = (sum + (planes[i] | (planes[n + i] << 8))) & 0xffff; codes[i] = sum; }
         return codes;
-      })());
+      }));
     }
     return streams.get(data);
   }
@@ -45,13 +50,13 @@
     return Uint32Array.from(part, gap => (index += gap));
   }
 
-  // One scenario's signals as overlay and error figures: a grid of
+  // Some of a scenario's signals as an overlay or error figure: a grid of
   // subplots sharing the time axis, one legend entry per run.
-  function signalFigure(data, codes, kind) {
+  function signalFigure(data, codes, kind, signals) {
     const [t0, t1, n] = data.t;
     const time = i => t0 + (t1 - t0) * i / (n - 1);
     const full = Float64Array.from({length: n}, (_, i) => time(i));
-    const columns = 3, rows = Math.ceil(data.signals.length / columns);
+    const columns = 3, rows = Math.ceil(signals.length / columns);
     const traces = [], annotations = [];
     const layout = {
       grid: {rows: rows, columns: columns, pattern: "independent", xgap: 0.12, ygap: 0.35},
@@ -59,7 +64,7 @@
       legend: {orientation: "h", x: 0, y: 1, yanchor: "top", yref: "container"},
       hovermode: "closest", annotations: annotations,
     };
-    data.signals.forEach((signal, k) => {
+    signals.forEach((signal, k) => {
       const axis = k === 0 ? "" : String(k + 1);
       const xaxis = "x" + axis, yaxis = "y" + axis;
       layout["xaxis" + axis] = k === 0 ? {} : {matches: "x"};
@@ -137,24 +142,30 @@
     const kind = element.dataset.kind;
     if (kind === "plotly") return data;
     const codes = await codeStream(data);
-    return kind === "energy" ? energyFigure(data, codes) : signalFigure(data, codes, kind);
+    if (kind === "energy") return energyFigure(data, codes);
+    const [first, stop] = element.dataset.signals.split("-").map(Number);   // this figure's share of the signals
+    return signalFigure(data, codes, kind, data.signals.slice(first, stop));
   }
 
   const hiddenEngines = new Set();
   function engineOf(label) { return label.split(" [")[0]; }
 
-  // plotly.js arrives as text (plots.page_scripts); an inline script runs
-  // as soon as it is inserted.
+  // plotly.js arrives deflated (plots.page_scripts); an inline script runs
+  // as soon as it is inserted. Inflated and run once: on the first draw, or
+  // just after the page has loaded, whichever comes first.
+  let plotly = null;
   function loadPlotly() {
-    if (window.Plotly) return;
-    const script = document.createElement("script");
-    script.textContent = document.getElementById("plotly-js").textContent;
-    document.head.appendChild(script);
+    plotly = plotly || inflate(document.getElementById("plotly-js").textContent).then(bytes => {
+      const script = document.createElement("script");
+      script.textContent = new TextDecoder().decode(bytes);
+      document.head.appendChild(script);
+    });
+    return plotly;
   }
 
   async function draw(element) {
     const figure = await figureFor(element);
-    loadPlotly();
+    await loadPlotly();
     if (element.dataset.group) {
       figure.data.forEach(trace => {
         if (trace.legendgroup && hiddenEngines.has(engineOf(trace.legendgroup))) trace.visible = "legendonly";
@@ -199,11 +210,9 @@
     document.querySelectorAll("#filter input[data-verdict]").forEach(box => {
       if (box.checked) verdicts.add(box.dataset.verdict);
     });
-    document.querySelectorAll("tr[data-verdict]").forEach(row => {
-      row.hidden = !(engines.has(row.dataset.engine) && verdicts.has(row.dataset.verdict));
-    });
     document.querySelectorAll(".run[data-engine]").forEach(run => {
-      run.hidden = !run.querySelector("tr[data-verdict]:not([hidden])");
+      run.querySelectorAll("tr[data-verdict]").forEach(row => { row.hidden = !verdicts.has(row.dataset.verdict); });
+      run.hidden = !engines.has(run.dataset.engine) || !run.querySelector("tr[data-verdict]:not([hidden])");
     });
     document.querySelectorAll("section.scenario").forEach(section => {
       const shown = !!section.querySelector(".run:not([hidden])");
@@ -239,4 +248,5 @@
     });
     open(decodeURIComponent(location.hash.slice(1)));
   });
+  window.addEventListener("load", () => setTimeout(loadPlotly, 0));
 })();

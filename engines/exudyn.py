@@ -52,11 +52,10 @@ from mechval.mechanism import Mechanism
 from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
-from .base import EngineAdapter, RawRun, RunInfo, default_step
+from .base import EngineAdapter, RawRun, RunInfo, default_step, planned_motion
 from .exudyn_audit import audit_model
 from .exudyn_model import solve
-from .exudyn_run import (force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows,
-                         scene_motion)
+from .exudyn_run import force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
 
 #: Newton's absolute tolerance per newton of force scale. Newton stops at the
 #: relative goal (1e-12 of the step's first residual) or at this floor,
@@ -71,7 +70,7 @@ NEWTON_TOLERANCE_PER_NEWTON = 1e-13
 RAD_PER_STEP = 0.007
 #: Instants of the force estimate over the run; a torque-driven or free
 #: mechanism's uses the step rule's grid (`step_rate`), so that its motion
-#: is integrated once (`scene_motion`).
+#: is integrated once (`planned_motion`).
 FORCE_SCALE_GRID, STEP_RULE_GRID = 2001, 20001
 
 
@@ -153,9 +152,9 @@ class ExudynAdapter(EngineAdapter):
         starts at its first instant: no pre-roll, and Exudyn's own
         initial-acceleration solve (`own_start`) gives the reactions there;
         its step rule and force scale read the forward-dynamics reference
-        (`scene_motion`).
+        (`planned_motion`).
         """
-        scene = scene_motion(mechanism)
+        scene = planned_motion(mechanism)
         return {
             "solver": "index2",
             "timestep": default_step(scene, times, rad_per_step=RAD_PER_STEP),

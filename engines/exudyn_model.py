@@ -36,12 +36,10 @@ import exudyn.itemInterface as eii
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import Unrepresentable
+from mechval.engines.base import reference_motion
 from mechval.audit import force_item, torque_law_item
-from mechval.dynamics import raw_dynamics
 from mechval.kinematics import point_motion, rotate
 from mechval.mechanism import GROUND, Body, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
-from mechval.planar_constraints import MechanismError
 
 #: The adapter's solver names (setting "solver") → Exudyn's solvers.
 SOLVERS = {"index2": exu.DynamicSolverType.TrapezoidalIndex2, "index3": exu.DynamicSolverType.GeneralizedAlpha}
@@ -92,24 +90,13 @@ class ExudynModel:
         return next(iter(next(iter(self.body_sensors.values())).values()))
 
 
-def forward_motion(mechanism: Mechanism, t: np.ndarray) -> pd.DataFrame:
-    """The forward-dynamics reference's raw columns at instants t, from its
-    consistent initial state at t[0]; a mechanism it refuses (an
-    inconsistent initial state, too few initial values) is Unrepresentable
-    with the reference's key and reason."""
-    try:
-        return raw_dynamics(mechanism, t).frame
-    except MechanismError as exc:
-        raise Unrepresentable(exc.key, exc.reason) from None
-
-
 def start_state(mechanism: Mechanism, t0: float) -> pd.DataFrame:
     """The reference state at t0 as raw motion columns (one row): the
     prescribed motion, or for a torque-driven or free mechanism (which
     starts at its first instant) the forward-dynamics reference's
     consistent initial state with its accelerations."""
     if mechanism.forward_dynamics:
-        return forward_motion(mechanism, np.array([t0]))
+        return reference_motion(mechanism, np.array([t0]))
     start = mechanism.motion(np.array([t0]))
     if not np.all(np.isfinite(start.to_numpy(dtype=float))):
         raise ValueError(f"exudyn: the reference cannot give a consistent state at the pre-roll start "

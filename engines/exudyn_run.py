@@ -6,7 +6,6 @@ the model audit (`exudyn_audit`) both build on this module.
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Mapping
 
 import exudyn as exu
@@ -17,7 +16,7 @@ from mechval.health import drive_errors
 from mechval.kinematics import joint_gaps, point_motion, rotate
 from mechval.mechanism import GROUND, MOTION_QUANTITIES, Mechanism
 
-from .exudyn_model import SOLVERS, ExudynModel, build_model, forward_motion, simulation_settings
+from .exudyn_model import SOLVERS, ExudynModel, build_model, simulation_settings
 
 #: The index-3 force transient after the start shrinks like ρ^n over n
 #: steps, whatever the step (docs/engines.md); the pre-roll lets it decay
@@ -58,26 +57,6 @@ def index3_transient_steps(spectral_radius: float) -> int:
     if spectral_radius == 0.0:
         return 1
     return int(np.ceil(np.log(INDEX3_TRANSIENT_DECAY) / np.log(spectral_radius)))
-
-
-def scene_motion(mechanism: Mechanism) -> Mechanism:
-    """The mechanism whose `motion` gives its motion over the run: as it is
-    for prescribed motion; for a torque-driven or free mechanism, whose
-    motion is not known before it is integrated, the forward-dynamics
-    reference from the grid's first instant (each grid integrated once),
-    so that the step rule and the force scale read it like kinematics."""
-    if not mechanism.forward_dynamics:
-        return mechanism
-    frames: dict[tuple[float, float, int], pd.DataFrame] = {}
-
-    def motion(t: np.ndarray) -> pd.DataFrame:
-        t = np.asarray(t, dtype=float)
-        key = (float(t[0]), float(t[-1]), len(t))
-        if key not in frames:
-            frames[key] = forward_motion(mechanism, t)
-        return frames[key]
-
-    return dataclasses.replace(mechanism, motion=motion)
 
 
 def force_scale(mechanism: Mechanism, times: np.ndarray, dense: int = 2001) -> float:

@@ -91,7 +91,6 @@ on fourbar-seed.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from typing import Any, ClassVar, Mapping
 
@@ -99,32 +98,16 @@ import numpy as np
 import pandas as pd
 
 from mechval.adapter import FEATURES, as_float, ceil_or_inf, steps_per_interval
-from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, planned_motion
 from mechval.mechanism import Mechanism
 from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from .mujoco_audit import audit_model
 from .mujoco_model import INTEGRATORS, SOLIMP
-from .mujoco_run import Model, reference_motion, warnings_silenced
+from .mujoco_run import Model, warnings_silenced
 
 MODES = ("forward", "inverse")
-#: The forward-dynamics reference's tolerance when it only tells the step
-#: rule how fast a torque-driven or free mechanism moves (Ω within a few
-#: per cent is all the rule needs).
-RATE_RTOL = 1e-6
-
-
-def planned_motion(mechanism: Mechanism) -> Mechanism:
-    """The mechanism whose `motion` is what the step rule should look at:
-    its prescribed motion, or for a torque-driven or free one the
-    forward-dynamics reference from its initial state (its own `motion`
-    then describes no run)."""
-    if not mechanism.forward_dynamics:
-        return mechanism
-    return dataclasses.replace(mechanism, motion=lambda t: reference_motion(mechanism, t, RATE_RTOL))
-
-
 class MujocoAdapter(EngineAdapter):
     name: ClassVar[str] = "mujoco"
     library: ClassVar[str] = "mujoco"

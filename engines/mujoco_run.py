@@ -17,11 +17,9 @@ import numpy as np
 import pandas as pd
 from mujoco import rollout
 
-from mechval.dynamics import RTOL, raw_dynamics
-from mechval.engines.base import Unrepresentable
+from mechval.engines.base import Unrepresentable, reference_motion
 from mechval.kinematics import separation_gap, slide_axis
 from mechval.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
-from mechval.planar_constraints import MechanismError
 
 from .mujoco_model import (Names, Topology, angle_coefficients, clock_name, coordinates, drive_name, force_name,
                            force_sites, inertia_shift, loop_name, mjcf, raw_columns, topology, torque_coefficients,
@@ -91,18 +89,6 @@ def compile_model(xml: str) -> mujoco.MjModel:
         except ValueError as exc:
             reason = " ".join(str(exc).split())
             raise Unrepresentable("engines.mujoco", f"MuJoCo cannot compile the model ({reason})") from None
-
-
-def reference_motion(mech: Mechanism, t: np.ndarray, rtol: float = RTOL) -> pd.DataFrame:
-    """The reference's raw columns at instants t: the prescribed motion, or
-    for a torque-driven or free mechanism the forward dynamics (at `rtol`)
-    from its initial values at t[0]; a refused initial state names its key."""
-    if not mech.forward_dynamics:
-        return mech.motion(t)
-    try:
-        return raw_dynamics(mech, t, rtol=rtol).frame
-    except MechanismError as exc:
-        raise Unrepresentable(exc.key, exc.reason) from None
 
 
 class Model:

@@ -49,9 +49,8 @@ from mechval.adapter import FEATURES, as_float, steps_per_interval
 from mechval.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
-from .base import EngineAdapter, RawRun, default_step
+from .base import EngineAdapter, RawRun, default_step, planned_motion
 from .pybullet_audit import audit_model
-from .pybullet_model import planned_motion
 from .pybullet_run import run_model
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see

@@ -42,7 +42,8 @@ from mechval.kinematics import slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism
 
 from .pybullet_run import Stepper, step_plan
-from .pybullet_model import BodyHandle, Model, build, p, planned_motion
+from .base import planned_motion
+from .pybullet_model import BodyHandle, Model, build, p
 
 ENGINE = "pybullet"
 #: PyBullet's defaults for what has no getter (docs/engines.md, PyBullet 3.2.7).

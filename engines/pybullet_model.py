@@ -22,21 +22,18 @@ effect is disarmed here (see `disarm_defaults` and `configure_solver`).
 
 from __future__ import annotations
 
-import dataclasses
 from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from .base import Unrepresentable, native_output_silenced
+from .base import Unrepresentable, native_output_silenced, reference_motion
 
 with native_output_silenced():      # PyBullet prints its build time on import
     import pybullet as p
 
-from mechval.dynamics import raw_dynamics
 from mechval.kinematics import point_motion, point_position, rotate_scalar, separation, slide_axis, slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism
-from mechval.planar_constraints import MechanismError
 
 #: Force/impulse caps meant as "no cap": far above any kN-scale reaction,
 #: far below overflow.
@@ -219,31 +216,6 @@ def configure_solver(client: int, timestep: float, gravity: tuple[float, float])
     p.setGravity(gravity[0], gravity[1], 0.0, physicsClientId=client)
 
 
-#: The forward-dynamics reference's tolerance where only a run's peak rates
-#: are needed (`planned_motion`): on every case of tests/dynamic_mechanisms.py
-#: it gives the step rule's Ω of 1e-10 to 4 digits in about half the time
-#: (0.2–3.6 s; a looser 1e-4 misjudged the jerk of the falling four-bar by
-#: 40 %).
-RATE_RTOL = 1e-6
-
-
-def planned_motion(mechanism: Mechanism) -> Mechanism:
-    """The mechanism with its whole run's motion known where only its peak
-    rates are needed (the default step, the audit's speed clamp): a
-    prescribed motion as it is; a torque-driven or free one integrated by
-    the forward-dynamics reference at RATE_RTOL."""
-    if not mechanism.forward_dynamics:
-        return mechanism
-
-    def motion(t: np.ndarray) -> pd.DataFrame:
-        try:
-            return raw_dynamics(mechanism, t, rtol=RATE_RTOL).frame
-        except MechanismError as exc:
-            raise Unrepresentable(exc.key, exc.reason) from None
-
-    return dataclasses.replace(mechanism, motion=motion)
-
-
 def start_state(mechanism: Mechanism, t_start: float, timestep: float) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The reference state a run starts from: (poses at t_start, rates at
     t_start − dt/2, since the semi-implicit Euler velocity stands for the
@@ -258,10 +230,7 @@ def start_state(mechanism: Mechanism, t_start: float, timestep: float) -> tuple[
     (O(dt²), like the velocities the engine's steps then carry)."""
     if not mechanism.forward_dynamics:
         return mechanism.motion(np.array([t_start])), mechanism.motion(np.array([t_start - timestep / 2]))
-    try:
-        pose = raw_dynamics(mechanism, np.array([t_start])).frame
-    except MechanismError as exc:      # refused by the reference (e.g. an inconsistent initial state)
-        raise Unrepresentable(exc.key, exc.reason) from None
+    pose = reference_motion(mechanism, np.array([t_start]))
     rates = pose.copy()
     for body in mechanism.bodies:
         for rate, accel in (("vx", "ax"), ("vy", "ay"), ("omega", "alpha")):

@@ -24,7 +24,7 @@ from mechval.kinematics import point_motion
 from mechval.planar_solver import raw_planar
 from mechval.reference import raw_reference
 from mechval.scenario import ScenarioError
-from mechval.scenarios import builtin_names, parse
+from mechval.scenarios import parse
 from mechval.signals import SIGNAL_CLASS
 from scales import motion_scales, size
 from test_planar_solver import BOUND, column_scales, worst

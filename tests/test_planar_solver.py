@@ -32,7 +32,6 @@ from mechval.kinematics import point_motion
 from mechval.mechanism import GROUND, BodyPose, BodyTorque, Drive, Joint, SpringDamper
 from mechval.planar_solver import MechanismError, raw_planar
 from mechval.reference import raw_reference
-from mechval.scenarios import builtin_names
 from scales import motion_scales, size
 
 #: What "agrees" means for the general reference, as a fraction of each

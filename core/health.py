@@ -39,7 +39,7 @@ def drive_errors(mech: Mechanism, raw) -> np.ndarray:
     t = np.asarray(raw["t"])
     angle = lambda name: 0.0 if name == GROUND else np.asarray(raw[f"{name}.theta"])
     size = max((abs(v) for j in mech.joints for v in j.point_i + j.point_j), default=1.0) or 1.0
-    errors = []
+    errors = [np.zeros(len(t))]      # no prescribed drive: nothing to track
     for drive in mech.drives:
         joint = mech.joint(drive.joint)
         if joint.kind == "revolute":
@@ -68,6 +68,8 @@ def power_balance(mech: Mechanism, raw) -> tuple[np.ndarray, np.ndarray]:
     for drive in mech.drives:
         joint = mech.joint(drive.joint)
         power = power + np.asarray(raw[drive.effort_column(joint.kind)]) * relative(joint)
+    for law in mech.torque_drives:      # applied torque laws work like drives
+        power = power + np.asarray(raw[f"{law.name}.T"]) * relative(mech.joint(law.joint))
     for element in mech.forces:
         if isinstance(element, BodyTorque):
             rate = rate - element.torque * omega(element.body)

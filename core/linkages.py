@@ -4,9 +4,12 @@ check_closure, kinematics, body_motion, build_mechanism)."""
 
 from __future__ import annotations
 
+import dataclasses
 from types import ModuleType
 
 from . import fourbar, inverted_slider, slider_crank, slotted_lever
+from .drive import DriveLaw
+from .dynamic_scene import with_dynamics
 from .mechanism import Mechanism
 from .planar_scene import build_mechanism as build_planar
 from .scenario import Scenario
@@ -21,7 +24,14 @@ def linkage(kind: str) -> ModuleType:
 
 def build_mechanism(scenario: Scenario) -> Mechanism:
     """The generic `Mechanism` of a validated scenario (a planar file's
-    from its bodies and joints, `mechval.planar_scene`)."""
+    from its bodies and joints, `mechval.planar_scene`; a torque-driven or
+    free scene's with the integrated motion, `mechval.dynamic_scene`)."""
     if scenario.mechanism == "planar":
-        return build_planar(scenario)
-    return LINKAGES[scenario.mechanism].build_mechanism(scenario)
+        mechanism = build_planar(scenario)
+    elif scenario.drive is None:    # a torque-driven or free crank: built at its initial angle and rate
+        start = scenario.initial_values[0]
+        stand_in = dataclasses.replace(scenario, drive=DriveLaw(start.value, start.rate))
+        mechanism = LINKAGES[scenario.mechanism].build_mechanism(stand_in)
+    else:
+        mechanism = LINKAGES[scenario.mechanism].build_mechanism(scenario)
+    return with_dynamics(scenario, mechanism) if scenario.forward_dynamics else mechanism

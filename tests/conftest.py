@@ -19,8 +19,10 @@ def builtin_scenario(name: str):
 
 
 #: Built-ins of the four closed-form kinds (each has a planar twin); the
-#: planar built-ins have no closed form (tests/test_new_scenes.py).
-CLOSED_FORM = [name for name in BUILTIN if builtin_scenario(name).mechanism != "planar"]
+#: planar built-ins have no closed form (tests/test_new_scenes.py), nor
+#: have torque-driven and free scenes (integrated: tests/test_dynamic_scenes.py).
+CLOSED_FORM = [name for name in BUILTIN if builtin_scenario(name).mechanism != "planar"
+               and not builtin_scenario(name).forward_dynamics]
 #: Built-in × engine pairs the engine cannot run at all, with the error it
 #: stops with (the failure is the finding, see the scene's file; the tests
 #: fail when the engine starts to run it, so that the note gets updated).

@@ -19,7 +19,8 @@ import pandas as pd
 from .dynamics import ForwardDynamics
 from .mechanism import BodyPose, Mechanism
 from .planar_solver import default_pose
-from .scenario import Scenario
+from .planar_constraints import MechanismError
+from .scenario import Scenario, ScenarioError
 
 #: Integrated runs kept per process (a scene's samples and the step rule's
 #: dense grid are each asked for by every adapter's default settings).
@@ -30,16 +31,21 @@ _runs: OrderedDict = OrderedDict()
 class IntegratedMotion:
     """A torque-driven or free mechanism's `motion`: the raw motion columns
     of the forward-dynamics reference from its initial values at t = 0
-    (instants from 0 on), the last few runs kept."""
+    (instants from 0 on), the last few runs kept. A run the reference
+    refuses (too long, a toggle of the stated joints) is bad input of the
+    scenario file `source`, whoever asked for the motion."""
 
-    def __init__(self, mechanism: Mechanism | None = None):
-        self.mechanism = mechanism
+    def __init__(self, source=None, mechanism: Mechanism | None = None):
+        self.source, self.mechanism = source, mechanism
 
     def __call__(self, t: np.ndarray) -> pd.DataFrame:
         t = np.asarray(t, dtype=float)
         key = (self.mechanism, t.tobytes())
         if key not in _runs:
-            _runs[key] = ForwardDynamics(self.mechanism, t0=0.0).solve(t).frame
+            try:
+                _runs[key] = ForwardDynamics(self.mechanism, t0=0.0).solve(t).frame
+            except MechanismError as exc:
+                raise ScenarioError(self.source, exc.key, exc.reason) from None
             while len(_runs) > CACHED_RUNS:
                 _runs.popitem(last=False)
         _runs.move_to_end(key)
@@ -53,7 +59,7 @@ def with_dynamics(scenario: Scenario, prescribed: Mechanism) -> Mechanism:
     laws and initial values, the assembly pose of the stand-in at t = 0
     (it picks the branch), and the integrated motion."""
     pose = {name: BodyPose(p.theta, p.x, p.y) for name, p in default_pose(prescribed, 0.0).items()}
-    motion = IntegratedMotion()
+    motion = IntegratedMotion(scenario.source)
     mechanism = dataclasses.replace(
         prescribed, drive=prescribed.drive if scenario.drive is not None else None,
         extra_drives=prescribed.extra_drives if scenario.drive is not None else (),

@@ -57,11 +57,12 @@ RTOL = 1e-10
 METHODS = ("DOP853", "Radau")
 NEWTON_ITERATIONS = 30
 #: Most right-hand-side evaluations of one integration (README "Limits"):
-#: each solves the positions by Newton, 0.3-2.5 ms here (the loaded figure
-#: on a shared 2-core machine), so 10⁵ take ~0.5-4 min. The built-ins take
-#: 150-3000 (tests/bench/dynamics_bench.py: the seed four-bar falling for
-#: 10 s ~10⁴); a scene beyond it is refused rather than run for hours.
-MAX_EVALUATIONS = 100_000
+#: each solves the positions by Newton, 1.5-3 ms measured on a shared
+#: 2-core machine at load 7 (tests/bench/dynamics_bench.py), so 3·10⁴ take
+#: 45-90 s, within the fuzz tests' 120 s bound on one case. The built-ins
+#: take 150-2,500; the seed four-bar falling for 10 s 9,560. A longer run is
+#: refused rather than left running for many minutes.
+MAX_EVALUATIONS = 30_000
 
 
 class TooLong(Exception):

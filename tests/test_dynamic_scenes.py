@@ -237,3 +237,11 @@ def test_the_documented_examples_load_and_run():
         scenario = parse(tomllib.loads(text), "docs example")
         raw = ReferenceAdapter().run(build_mechanism(scenario), scenario.time.t, {}).frame
         assert scenario.forward_dynamics and np.isfinite(raw.to_numpy()).all()
+
+
+def test_analyse_refuses_an_integrated_scene_in_one_line(capsys):
+    """`mechval analyse` follows a prescribed motion: a free scene is
+    refused naming its [drive] type, not analysed along a motion it has not."""
+    status = main(["analyse", "fourbar-falling"])
+    err = capsys.readouterr().err
+    assert status == 2 and len(err.splitlines()) == 1 and ": drive.type: `mechval analyse` follows" in err

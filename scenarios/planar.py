@@ -1,6 +1,9 @@
 """Planar files (`mechanism = "planar"`, docs/scenario-format.md#planar-files):
 any mechanism of rigid bodies, revolute and prismatic joints, drives and
-force elements, validated into a `Scenario` whose `planar` holds the scene.
+force elements, validated into a `Scenario` whose `planar` holds the scene;
+joints left undriven take applied torque laws (`[[torque]]`) and the
+initial values a run starts from (`[[initial]]`), checked by assembling the
+consistent initial state (`scenarios.dynamic`).
 
 Every refusal is a `ScenarioError` naming the file, the key and the reason.
 Beyond each key's own checks: an unknown body or point, a joint from a body

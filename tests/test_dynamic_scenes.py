@@ -245,3 +245,21 @@ def test_analyse_refuses_an_integrated_scene_in_one_line(capsys):
     status = main(["analyse", "fourbar-falling"])
     err = capsys.readouterr().err
     assert status == 2 and len(err.splitlines()) == 1 and ": drive.type: `mechval analyse` follows" in err
+
+
+def test_a_half_driven_planar_file_keeps_its_drive():
+    """five-bar-two-drives with its second drive replaced by an initial
+    value at that joint: one prescribed crank, one free; the prescribed
+    crank follows its law exactly and its effort is a signal."""
+    def half(doc):
+        second = doc["drive"].pop()
+        doc["initial"] = [{"joint": second["joint"], "value": second["phi0"], "rate": second["omega0"]}]
+        doc["time"] = {"end": 0.2, "samples": 21}
+    scenario = parse(with_("five-bar-two-drives", half), "half.toml")
+    mech = build_mechanism(scenario)
+    assert len(mech.drives) == 1 and mech.initial_values and scenario.forward_dynamics
+    frame = simulate_reference(scenario).frame
+    law, t = scenario.planar.drives[0].law, scenario.time.t
+    joint = mech.joint(mech.drive.joint)
+    relative = frame[f"{joint.body_j}.theta"] - (0.0 if joint.body_i == "ground" else frame[f"{joint.body_i}.theta"])
+    assert np.abs(relative - law.angle(t)).max() <= 1e-12 and np.isfinite(frame[f"{joint.name}.T"]).all()

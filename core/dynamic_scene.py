@@ -40,7 +40,8 @@ class IntegratedMotion:
 
     def __call__(self, t: np.ndarray) -> pd.DataFrame:
         t = np.asarray(t, dtype=float)
-        key = (self.mechanism, t.tobytes())
+        # The pose picks the branch but takes no part in a Mechanism's equality.
+        key = (self.mechanism, tuple(sorted(self.mechanism.assembly_pose.items())), t.tobytes())
         if key not in _runs:
             try:
                 _runs[key] = ForwardDynamics(self.mechanism, t0=0.0).solve(t).frame

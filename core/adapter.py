@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from .mechanism import Mechanism
+from .planar_solver import redundant_constraints
 from .scenario import Scenario, ScenarioError
 from .settings import TIMESTEP, Setting
 
@@ -84,7 +85,8 @@ class Unrepresentable(ValueError):
 #: What a planar file may ask for beyond one revolute drive, gravity and
 #: joint dampers (`mechanism_features`); an adapter lists in `features`
 #: those it builds, and is refused the others before it runs.
-FEATURES = ("several drives", "a prismatic drive", "spring-dampers", "body torques", "torque laws", "free motion")
+FEATURES = ("several drives", "a prismatic drive", "spring-dampers", "body torques", "torque laws", "free motion",
+            "redundant constraints")
 
 
 def mechanism_features(mechanism: Mechanism) -> dict[str, str]:
@@ -102,6 +104,8 @@ def mechanism_features(mechanism: Mechanism) -> dict[str, str]:
         used.setdefault("torque laws", f"torque.{law.name}")
     if mechanism.drive is None or mechanism.initial_values:     # degrees of freedom no drive prescribes
         used["free motion"] = "initial"
+    if redundant_constraints(mechanism):        # a rank-deficient joint Jacobian, e.g. a parallelogram
+        used["redundant constraints"] = "joint"
     return used
 
 
@@ -134,6 +138,10 @@ class EngineAdapter(ABC):
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
     #: The FEATURES this adapter builds (none yet for the engines).
     features: ClassVar[frozenset[str]] = frozenset()
+    #: Why the engine itself cannot run a feature the adapter leaves out
+    #: (feature → reason, measured): the refusal then says so rather than
+    #: that the adapter does not build it yet.
+    feature_limits: ClassVar[Mapping[str, str]] = {}
 
     @classmethod
     def unavailable_reason(cls) -> str:

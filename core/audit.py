@@ -7,8 +7,11 @@ engine model must hold: per body mass, centre of mass (body frame) and izz
 (with no out-of-plane products of inertia, so z stays a principal axis);
 per joint its kind, bodies, point on each body, a prismatic joint's axis
 (body_i frame) and locked relative rotation, and its damping; the drive
-(joint, φ0, ω0, α); gravity (0 when the scene has none; z always 0); and a
-fixed list of effects that must be absent (`ABSENT_EFFECTS`).
+(joint, φ0, ω0, α); each torque law (joint, torque, amplitude, frequency,
+phase) and, for each joint whose motion is integrated from an initial
+value, that nothing prescribes it; gravity (0 when the scene has none; z
+always 0); and a fixed list of effects that must be absent
+(`ABSENT_EFFECTS`).
 
 Engine audits (`mechval.engines.*_audit`) build the model with the
 adapter's own build functions and return `Reading`s under the same
@@ -44,7 +47,7 @@ import numpy as np
 import pandas as pd
 
 from .kinematics import rotate
-from .mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
+from .mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 #: Engines store what they are given in float64 (PyBullet too; only its
 #: `getLinkState` link-frame output is float32, and the audits do not use it)
@@ -175,6 +178,10 @@ def expected_model(mech: Mechanism) -> list[Expectation]:
                  Expectation(item, "alpha", law.alpha, f"{unit}/s²", size)]
     for force in mech.forces:
         rows += _force_expectations(force, length)
+    for law in mech.torque_drives:
+        rows += _torque_law_expectations(law)
+    # A degree of freedom the run integrates carries no constraint of its own.
+    rows += [Expectation(joint_item(v.joint), "prescribed motion", "none") for v in mech.initial_values]
     g = float(np.hypot(*mech.gravity))
     rows += [Expectation(SCENE, "gravity x", mech.gravity[0], "m/s²", g),
              Expectation(SCENE, "gravity y", mech.gravity[1], "m/s²", g),
@@ -191,6 +198,22 @@ def drive_item(mech: Mechanism, drive: Drive) -> str:
 
 def force_item(force: SpringDamper | BodyTorque) -> str:
     return f"{'spring' if isinstance(force, SpringDamper) else 'torque'} {force.name}"
+
+
+def torque_law_item(law: TorqueLaw) -> str:
+    return f"torque law {law.name}"
+
+
+def _torque_law_expectations(law: TorqueLaw) -> list[Expectation]:
+    """A torque law's joint and its T(t) = torque + amplitude·sin(2π·
+    frequency·t + phase) (T on body_j, −T on body_i)."""
+    item = torque_law_item(law)
+    size = max(abs(law.torque), abs(law.amplitude)) or 1.0
+    return [Expectation(item, "joint", law.joint),
+            Expectation(item, "torque", law.torque, "N·m", size),
+            Expectation(item, "amplitude", law.amplitude, "N·m", size),
+            Expectation(item, "frequency", law.frequency, "Hz", abs(law.frequency)),
+            Expectation(item, "phase", law.phase, "rad", 1.0)]
 
 
 def _force_expectations(force: SpringDamper | BodyTorque, length: float) -> list[Expectation]:

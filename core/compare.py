@@ -19,11 +19,25 @@ without a reason fails. A signal the reference itself reports missing
 (a reaction left statically indeterminate by redundant constraints) is
 "missing" with the reference's reason, whatever the engine reports.
 
+Error growth: besides the largest error, each record gives the largest
+error over the first and over the last quarter of the run and the growth
+exponent p of the error's running maximum, fitted as ∝ (t − t0)^p
+(`error_growth`): a bias gives p ≈ 0, an error that grows with time (a
+phase or frequency error, a drift) p ≈ 1 or more. They describe; they do
+not judge.
+
 Run health (mechval.health) is judged in the same records, class "health":
 a loop-closure gap beyond the position tolerance or a drive error beyond
-the angle tolerance makes the positions meaningless; a power residual is
-held to the torque tolerance (it mixes the torque and the accelerations);
-any unexplained non-finite value or assembly-branch flip fails outright.
+the angle tolerance makes the positions meaningless; a constraint drift
+(gaps over the mechanism's size, prismatic angle errors) is an angle,
+held to the angle tolerance; a power residual and the energy balance are
+held to the torque tolerance (they mix the torques and the motion); the
+energy drift of a conservative scene to the velocity tolerance (its error
+comes from the rates: to first order a relative speed error ε changes the
+kinetic energy by 2ε); any unexplained non-finite value or assembly-branch
+flip fails outright. An energy balance whose work the samples are too
+coarse to integrate (its quadrature error above QUADRATURE_SHARE of the
+bound) is "missing", with the estimate.
 """
 
 from __future__ import annotations
@@ -31,11 +45,15 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .health import NOT_APPLICABLE
 from .scenario import Tolerance
 from .signals import SIGNAL_CLASS, Signals
 
+#: Error growth columns (`error_growth`), after the original ones so that
+#: those keep their places in every CSV written before.
+GROWTH_COLUMNS = ["error_first_quarter", "error_last_quarter", "growth_exponent"]
 COLUMNS = ["scenario", "engine", "setting", "signal", "class", "max_error", "t_max", "rms_error",
-           "peak", "relative_error", "tolerance", "bound", "ratio", "verdict", "missing", "reason"]
+           "peak", "relative_error", "tolerance", "bound", "ratio", "verdict", "missing", "reason", *GROWTH_COLUMNS]
 
 
 #: A reference signal whose peak is at most this fraction of its class's
@@ -92,6 +110,7 @@ def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario:
             error = np.abs(values[~bad] - ref[~bad])
             worst = int(np.argmax(error))
             max_error = float(error[worst])
+            row.update(error_growth(t[~bad], error))
             row.update(max_error=max_error, t_max=float(t[~bad][worst]),
                        rms_error=float(np.sqrt(np.mean(error**2))),
                        relative_error=max_error / peak if peak else np.nan,
@@ -103,9 +122,38 @@ def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario:
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
+def error_growth(t: np.ndarray, error: np.ndarray) -> dict[str, float]:
+    """How |error| grows over the run: its largest value over the first and
+    the last quarter of the time span, and the exponent p of a least-squares
+    fit log m(t) = p·log(t − t0) + c (numpy.polyfit) of its running maximum
+    m(t) = max |error| up to t, over the samples after t0 where m > 0 (NaN
+    when fewer than three; the running maximum, so an error oscillating with
+    the motion is measured by its envelope)."""
+    t = np.asarray(t, dtype=float)
+    error = np.abs(np.asarray(error, dtype=float))
+    result = dict.fromkeys(GROWTH_COLUMNS, np.nan)
+    if not len(t):
+        return result
+    since = t - t[0]
+    span = since[-1]
+    first, last = since <= span / 4, since >= 3 * span / 4
+    result["error_first_quarter"] = float(np.nanmax(error[first])) if np.isfinite(error[first]).any() else np.nan
+    result["error_last_quarter"] = float(np.nanmax(error[last])) if np.isfinite(error[last]).any() else np.nan
+    envelope = np.fmax.accumulate(error)
+    fitted = (since > 0) & (envelope > 0) & np.isfinite(envelope)
+    if fitted.sum() >= 3 and np.ptp(np.log(since[fitted])) > 0:
+        result["growth_exponent"] = float(np.polyfit(np.log(since[fitted]), np.log(envelope[fitted]), 1)[0])
+    return result
+
+
 #: Health column → (tolerance class whose bound applies, or None for "must be 0").
 HEALTH_BOUNDS = {"nonfinite": None, "gap": "position", "drive_error": "angle", "assembly_flip": None,
-                 "power_residual": "torque"}
+                 "power_residual": "torque", "constraint_drift": "angle", "energy_drift": "velocity",
+                 "energy_balance": "torque"}
+#: The energy balance is judged only where the work's quadrature error
+#: (mechval.health's energy_quadrature) is at most this share of its bound,
+#: so that a verdict speaks of the engine, not of the sample interval.
+QUADRATURE_SHARE = 0.1
 
 
 def _health_rows(health: pd.DataFrame, tolerance: Tolerance, ids: dict) -> list[dict]:
@@ -117,13 +165,23 @@ def _health_rows(health: pd.DataFrame, tolerance: Tolerance, ids: dict) -> list[
         bound = tolerance[cls] if cls else 0.0
         row.update(tolerance=bound, bound=bound)
         if name not in health:
-            rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
-                             reason="not available for this mechanism"))
+            if name not in NOT_APPLICABLE:      # else the measure does not apply: no row
+                rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
+                                 reason="not available for this mechanism"))
             continue
         values = health[name].to_numpy(dtype=float)
         if not np.isfinite(values).any():
             rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
-                             reason="the engine does not report the signals it needs"))
+                             reason="undefined for this run: the engine does not report the signals it needs, "
+                                    "or nothing moves (no power or energy to scale it by)"))
+            continue
+        row.update(error_growth(t, values))
+        quadrature = float(np.nanmax(health["energy_quadrature"])) if name == "energy_balance" else 0.0
+        if quadrature > QUADRATURE_SHARE * bound:
+            rows.append(dict(row, max_error=float(np.nanmax(values)), t_max=np.nan, ratio=np.nan, verdict="missing",
+                             reason=f"the samples are too coarse to integrate the applied power: the work's "
+                                    f"quadrature error is ~{quadrature:.2g}, over {QUADRATURE_SHARE:g} of the bound "
+                                    "(add samples)"))
             continue
         worst = int(np.nanargmax(values))
         value = float(values[worst])

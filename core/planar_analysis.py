@@ -7,9 +7,9 @@ the mechanism's structure and of how near it comes to a singular position.
 - redundant constraints: rows of Φq beyond its rank;
 - the condition number of the (scaled, reduced) Jacobian over the run, its
   largest value and when;
-- near-singular instants: where that condition peaks at more than
-  `NEAR_SINGULAR` times its median over the run (a toggle or dead-centre
-  position approached).
+- near-singular instants: where that condition peaks (the run's ends
+  included) at more than `NEAR_SINGULAR` times its median over the run (a
+  toggle or dead-centre position approached).
 """
 
 from __future__ import annotations
@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .linkages import build_mechanism
+from .planar_constraints import MechanismError
 from .planar_solver import raw_planar
-from .scenario import Scenario
+from .scenario import Scenario, ScenarioError
 
 NEAR_SINGULAR = 10.0
 
@@ -44,12 +45,15 @@ class PlanarAnalysis:
 def analyse_planar(scenario: Scenario, samples: int | None = None) -> PlanarAnalysis:
     mech = build_mechanism(scenario)
     t = np.linspace(0.0, scenario.time.end, samples or max(scenario.time.samples, 2001))
-    solution = raw_planar(mech, t)
+    try:
+        solution = raw_planar(mech, t)
+    except MechanismError as exc:      # an instant of the denser grid the file's own samples skip
+        raise ScenarioError(scenario.source, exc.key, exc.reason) from None
     cond, s = solution.condition, solution.structure
     median = float(np.median(cond))
-    inner = np.arange(1, len(cond) - 1)
-    peaks = inner[(cond[inner] >= cond[inner - 1]) & (cond[inner] > cond[inner + 1])
-                  & (cond[inner] > NEAR_SINGULAR * median)]
+    # local maxima, the run's ends included (a run may stop close to a toggle)
+    padded = np.concatenate([[-np.inf], cond, [-np.inf]])
+    peaks = np.flatnonzero((cond >= padded[:-2]) & (cond > padded[2:]) & (cond > NEAR_SINGULAR * median))
     worst = int(np.argmax(cond))
     return PlanarAnalysis(
         scenario=scenario.name, bodies=len(mech.bodies), joints=len(mech.joints), drives=len(mech.drives),

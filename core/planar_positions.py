@@ -167,12 +167,33 @@ def rank(A: np.ndarray) -> int:
     return int(np.sum(s > RANK_TOL * s[0])) if s.size and s[0] > 0 else 0
 
 
+def _joint_rows(c: Constraints) -> np.ndarray:
+    return np.array([k for k, row in enumerate(c.rows) if row.kind != "drive"], dtype=int)
+
+
+def _assembled_joints(c: Constraints, scaling: Scaling, pose: Mapping[str, BodyPose], t0: float) -> np.ndarray:
+    """q near `pose` that closes every joint (the drives not yet imposed)."""
+    return gauss_newton(c, scaling, initial_guess(c, pose), t0, _joint_rows(c), "assembly", "the joints")
+
+
+def redundant_joint_rows(c: Constraints, scaling: Scaling, pose: Mapping[str, BodyPose], t0: float) -> int:
+    """Joint equations beyond the rank of the joints' Jacobian at the pose
+    assembled near `pose`: redundant constraints (1 for a parallelogram
+    with a third crank). The drives play no part, so this holds for a
+    mechanism whose motion is not all prescribed too."""
+    rows = _joint_rows(c)
+    if not rows.size:
+        return 0
+    Js = scaling.jacobian(c.jacobian(_assembled_joints(c, scaling, pose, t0)[None])[0])
+    return int(rows.size - rank(Js[rows]))
+
+
 def structure(c: Constraints, scaling: Scaling, q: np.ndarray) -> Structure:
     """Mobility and ranks at the pose q; refuses drives that do not match
     the mobility or do not fix the motion."""
     mech = c.mech
     Js = scaling.jacobian(c.jacobian(q[None])[0])
-    joint_rows = np.array([k for k, row in enumerate(c.rows) if row.kind != "drive"], dtype=int)
+    joint_rows = _joint_rows(c)
     joint_rank = rank(Js[joint_rows]) if joint_rows.size else 0
     mobility = c.n - joint_rank
     grubler = 3 * len(mech.bodies) - 2 * len(mech.joints)
@@ -192,9 +213,7 @@ def structure(c: Constraints, scaling: Scaling, q: np.ndarray) -> Structure:
 
 def assemble(c: Constraints, scaling: Scaling, pose: Mapping[str, BodyPose], t0: float) -> tuple[np.ndarray, Structure]:
     """The assembled q at t0 and the mechanism's structure there."""
-    q = initial_guess(c, pose)
-    joint_rows = np.array([k for k, row in enumerate(c.rows) if row.kind != "drive"], dtype=int)
-    q = gauss_newton(c, scaling, q, t0, joint_rows, "assembly", "the joints")
+    q = _assembled_joints(c, scaling, pose, t0)
     found = structure(c, scaling, q)
     q = gauss_newton(c, scaling, q, t0, np.arange(c.m), "assembly", f"the joints with the drives at t = {t0:.6g} s")
     return q, found

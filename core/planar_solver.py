@@ -47,7 +47,7 @@ from .mechanism import MOTION_QUANTITIES, BodyPose, Mechanism
 from .planar_constraints import Constraints, MechanismError
 from .planar_forces import AppliedForces, mass_diagonal
 from .planar_linear import settled, solve_one
-from .planar_positions import Nodes, Scaling, Structure, assemble, march, mechanism_size
+from .planar_positions import Nodes, Scaling, Structure, assemble, march, mechanism_size, redundant_joint_rows
 from .planar_tree import Factor, Tree
 
 #: Instants per batch: bounds memory and keeps a batch's arrays in cache
@@ -268,6 +268,13 @@ class PlanarSolver:
                                  f"{found.rows} rows) make this reaction statically indeterminate in a "
                                  "rigid-body model")
         return missing
+
+
+def redundant_constraints(mech: Mechanism, t0: float = 0.0) -> int:
+    """How many of the mechanism's joint equations are redundant at its
+    assembly pose (rank of the joints' Jacobian; see `Structure`)."""
+    c = Constraints(mech)
+    return redundant_joint_rows(c, Scaling(c, mechanism_size(mech)), default_pose(mech, t0), t0)
 
 
 def raw_planar(mech: Mechanism, t: np.ndarray, pose: Mapping[str, BodyPose] | None = None) -> PlanarSolution:

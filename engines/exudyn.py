@@ -23,7 +23,12 @@ Conversion of Exudyn's native outputs to the mechval convention:
   against the reference confirm both).
 - Spring-dampers and body torques are engine elements
   (`ObjectConnectorSpringDamper`, `LoadTorqueVector`); they have no
-  column of their own.
+  column of their own. A torque law is a pair of `LoadTorqueVector`s
+  (T on body_j, −T on body_i) whose user function evaluates the law; its
+  column "NAME.T" is the applied torque read back by a load sensor.
+- A torque-driven or free mechanism runs from its first instant, in the
+  forward-dynamics reference's initial state; its degrees of freedom that
+  no drive prescribes carry no constraint.
 - Time stamp: the implicit solvers satisfy the equations of motion and the
   constraints at the end of every step, so the sensor value recorded after
   the step to t_n+1 belongs to t_n+1 (no half-step shift as in explicit
@@ -44,12 +49,14 @@ import pandas as pd
 
 from mechval.adapter import FEATURES, as_float, steps_per_interval
 from mechval.mechanism import Mechanism
+from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
 from .base import EngineAdapter, RawRun, RunInfo, default_step
 from .exudyn_audit import audit_model
 from .exudyn_model import solve
-from .exudyn_run import force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
+from .exudyn_run import (force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows,
+                         scene_motion)
 
 #: Newton's absolute tolerance per newton of force scale. Newton stops at the
 #: relative goal (1e-12 of the step's first residual) or at this floor,
@@ -62,6 +69,19 @@ NEWTON_TOLERANCE_PER_NEWTON = 1e-13
 #: tests/test_exudyn.py on fourbar-seed (figures: docs/engines.md); cost
 #: grows as 1/rad_per_step.
 RAD_PER_STEP = 0.007
+#: Instants of the force estimate over the run; a torque-driven or free
+#: mechanism's uses the step rule's grid (`step_rate`), so that its motion
+#: is integrated once (`scene_motion`).
+FORCE_SCALE_GRID, STEP_RULE_GRID = 2001, 20001
+
+
+def own_start(mechanism: Mechanism) -> bool:
+    """Whether Exudyn's own initial-acceleration solve gives the first
+    instant: for a torque-driven or free mechanism (which starts there, with
+    no pre-roll, so that its reactions there come only from this solve)
+    whose remaining drives do not accelerate (the solve ignores a drive's
+    φ''; docs/engines.md)."""
+    return mechanism.forward_dynamics and all(d.law.alpha == 0.0 for d in mechanism.drives)
 
 
 class ExudynAdapter(EngineAdapter):
@@ -73,8 +93,10 @@ class ExudynAdapter(EngineAdapter):
     settings_spec: ClassVar[Mapping[str, Setting]] = {
         "solver": Choice(("index2", "index3")),
         "timestep": TIMESTEP,
-        # At least one: t = 0 must be a solved step (see `prepare`).
-        "pre_roll_steps": Number(1, 100_000, whole=True),
+        # At least one for prescribed motion (t = 0 must be a solved step),
+        # 0 for a torque-driven or free mechanism, which starts at its
+        # first instant (`settings_for`, `prepare`).
+        "pre_roll_steps": Number(0, 100_000, whole=True),
         # Index-3 needs ρ < 1 (`index3_transient_steps`).
         "spectral_radius": Number(0.0, 1.0, high_open=True),
         "compute_initial_accelerations": Flag(),
@@ -92,15 +114,19 @@ class ExudynAdapter(EngineAdapter):
 
     step_settings = ("timestep", "pre_roll_steps", "spectral_radius")
     #: Every drive a coordinate constraint, springs and torques engine
-    #: elements (`exudyn_model`).
-    features = frozenset(FEATURES)
+    #: elements (`exudyn_model`). Not redundant constraints: measured on
+    #: Exudyn 1.13.6 with the parallelogram double four-bar (docs/engines.md).
+    features = frozenset(FEATURES) - {"redundant constraints"}
+    feature_limits = {"redundant constraints": "its solver stops at the first step on the singular system "
+                                               "Jacobian ('System Jacobian seems to be singular' with the index-2 "
+                                               "solver, 'SolveDynamic terminated' with index-3)"}
     output_copies, bytes_per_step = 4, 1600       # every sensor at every step
 
     def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
         """The pre-roll covers index-3's start-up transient (`prepare`)."""
         pre_roll = as_float(settings["pre_roll_steps"])
         rho = settings["spectral_radius"]
-        if settings["solver"] == "index3" and 0.0 <= rho < 1.0:
+        if settings["solver"] == "index3" and 0.0 <= rho < 1.0 and pre_roll:
             pre_roll = max(pre_roll, index3_transient_steps(rho))
         return steps_per_interval(times, as_float(settings["timestep"])), pre_roll
 
@@ -122,18 +148,42 @@ class ExudynAdapter(EngineAdapter):
         - adaptive_step False: it silently shrinks steps;
         - spectral_radius (index-3 only): numerical damping; must stay < 1
           (at 1, λ zig-zags from step to step without decay).
+
+        A torque-driven or free mechanism (`Mechanism.forward_dynamics`)
+        starts at its first instant: no pre-roll, and Exudyn's own
+        initial-acceleration solve (`own_start`) gives the reactions there;
+        its step rule and force scale read the forward-dynamics reference
+        (`scene_motion`).
         """
+        scene = scene_motion(mechanism)
         return {
             "solver": "index2",
-            "timestep": default_step(mechanism, times, rad_per_step=RAD_PER_STEP),
-            "pre_roll_steps": 10,
+            "timestep": default_step(scene, times, rad_per_step=RAD_PER_STEP),
+            "pre_roll_steps": 0 if mechanism.forward_dynamics else 10,
             "spectral_radius": 0.9,
-            "compute_initial_accelerations": False,
+            "compute_initial_accelerations": own_start(mechanism),
             "full_newton": True,
             "newton_relative_tolerance": 1e-12,
-            "newton_absolute_tolerance": NEWTON_TOLERANCE_PER_NEWTON * force_scale(mechanism, times),
+            "newton_absolute_tolerance": NEWTON_TOLERANCE_PER_NEWTON * force_scale(
+                scene, times, STEP_RULE_GRID if mechanism.forward_dynamics else FORCE_SCALE_GRID),
             "adaptive_step": False,
         }
+
+    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
+                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """As every adapter's, and a pre-roll that does not fit the motion
+        is refused with the file (or override) and key: at least one step
+        for prescribed motion (Exudyn reports zero reactions at its first
+        instant), none for a torque-driven or free mechanism (its motion is
+        known only from its first instant on)."""
+        settings = super().settings_for(scenario, mechanism, overrides)
+        if (settings["pre_roll_steps"] == 0) != mechanism.forward_dynamics:
+            source = "settings override" if "pre_roll_steps" in (overrides or {}) else scenario.source
+            reason = ("must be 0 for a torque-driven or free mechanism: it starts at its first instant"
+                      if mechanism.forward_dynamics else
+                      "must be at least 1: Exudyn reports zero reactions at its first instant")
+            raise ScenarioError(source, f"engines.{self.name}.pre_roll_steps", reason)
+        return settings
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         return audit_model(mechanism, times, settings)
@@ -147,9 +197,10 @@ class ExudynAdapter(EngineAdapter):
         wall_time = time.perf_counter() - clock
 
         state = node_states(model)
-        t_all = t0 + model.mbs.GetSensorStoredData(model.drive_sensor)[:, 0]
+        t_all = t0 + model.mbs.GetSensorStoredData(model.clock_sensor)[:, 0]
         rows = sample_rows(t_all, times)
-        frame, missing, gap, drive_error = frame_of(mechanism, model, state, rows, times, t_all)
+        frame, missing, gap, drive_error = frame_of(mechanism, model, state, rows, times, t_all,
+                                                    bool(settings["compute_initial_accelerations"]))
         info = {
             "steps": len(t_all) - 1,
             "pre_roll_start": t0, "newton_iterations": int(solver.it.newtonStepsCount),

@@ -19,7 +19,9 @@ joint whose relative coordinate it acts on: the rotation coordinates of the
 joint's two bodies (revolute), or their relative translation along the
 joint's axis (prismatic). The drive law is read by evaluating the drive
 constraint's offset user function (a quadratic: three points determine it,
-a fourth checks it) and its time derivative.
+a fourth checks it) and its time derivative. A torque law is read from its
+two loads (see `Reader.torque_law`), and a joint integrated from an initial
+value from the coordinate constraints on its coordinate (there must be none).
 """
 
 from __future__ import annotations
@@ -30,12 +32,12 @@ import numpy as np
 import pandas as pd
 
 from mechval.audit import (SCENE, Reading, audit, axis_readings, body_item, bodies_text, drive_item, expected_model,
-                           force_item, joint_item, listing, point_readings, to_body)
+                           force_item, joint_item, listing, point_readings, to_body, torque_law_item)
 from mechval.kinematics import rotate
-from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
+from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 from .exudyn_run import prepare
-from .exudyn_model import ExudynModel
+from .exudyn_model import ExudynModel, TorqueLawLoad
 
 ENGINE = "exudyn"
 #: Item types the adapter's model is made of; anything else is listed.
@@ -48,15 +50,16 @@ ROUNDING = 1e-12
 def audit_model(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
     """The audit table of the Exudyn model the adapter builds."""
     model, simulation, t0 = prepare(mech, times, settings)
-    reader = Reader(mech, model, mech.motion(np.array([t0])), t0)
+    reader = Reader(mech, model, model.start, t0, np.asarray(times, dtype=float))
     return audit(expected_model(mech), reader.readings() + notes(settings, simulation))
 
 
 class Reader:
     """Readings of one assembled system in its initial state."""
 
-    def __init__(self, mech: Mechanism, model: ExudynModel, start: pd.DataFrame, t0: float):
+    def __init__(self, mech: Mechanism, model: ExudynModel, start: pd.DataFrame, t0: float, times: np.ndarray):
         self.mech, self.model, self.mbs, self.start, self.t0 = mech, model, model.mbs, start, t0
+        self.times = times      # the run's output instants
         data = model.mbs.systemData
         self.objects = [self.mbs.GetObject(i) for i in range(data.NumberOfObjects())]
         self.markers = [self.mbs.GetMarker(i) for i in range(data.NumberOfMarkers())]
@@ -80,7 +83,9 @@ class Reader:
                         if j.name in dampers else "no spring-damper on this joint's coordinate")
                 for j in self.mech.joints]
         out += [r for drive in self.mech.drives for r in self.drive(drive)]
+        out += [self.prescribed(value.joint) for value in self.mech.initial_values]
         out += [r for force in self.mech.forces for r in self.force(force)]
+        out += [r for law in self.mech.torque_drives for r in self.torque_law(law)]
         return out + self.scene(other_dampers, springs)
 
     # -- bodies and points --------------------------------------------------------------
@@ -256,6 +261,22 @@ class Reader:
             readings.append(Reading(item, "ratio", float(o["factor1"])))
         return readings
 
+    def prescribed(self, joint: str) -> Reading:
+        """The coordinate constraints on a joint's relative coordinate (its
+        two bodies' rotations, in either order, or its slide)."""
+        found = []
+        for number, o in enumerate(self.objects):
+            if o["objectType"] != "ConnectorCoordinate":
+                continue
+            markers = [int(k) for k in o["markerNumbers"]]
+            bodies = [self.rotation_of(k) for k in markers]
+            on = self.slide_of(markers) if None in bodies else next(
+                (j.name for j in self.mech.joints if j.kind == "revolute" and {j.body_i, j.body_j} == set(bodies)), None)
+            if on == joint:
+                found.append(f"object {number} (ConnectorCoordinate)")
+        return Reading(joint_item(joint), "prescribed motion", listing(found),
+                       "coordinate constraints on the joint's relative coordinate")
+
     def slide_of(self, markers: list[int]) -> str | None:
         """The prismatic joint whose slide s the pair (a ground coordinate,
         then a relative translation marker: q1 − q0 = s) measures: the marker joins the
@@ -322,6 +343,42 @@ class Reader:
         if extras:
             readings.append(Reading(item, "extras", listing(extras)))
         return readings
+
+    def torque_law(self, law: TorqueLaw) -> list[Reading]:
+        """The `LoadTorqueVector`s named after the law: the joint whose
+        bodies carry them (body_j +T, body_i −T, none on the ground), and
+        the law's parameters as held by their user function (Exudyn reports
+        the function, not what it computes), checked by evaluating both
+        loads' functions at the run's output instants."""
+        item = torque_law_item(law)
+        found = [i for i, load in enumerate(self.loads) if load["name"] == item]
+        self.used_loads.update(found)
+        carried, functions = {}, []
+        for number in found:
+            load = self.loads[number]
+            marker = self.markers[int(load["markerNumber"])]
+            body = self.object_body.get(int(marker.get("bodyNumber", -1)), f"marker type {marker['markerType']}")
+            function = load["loadVectorUserFunction"]
+            function = function["function"] if isinstance(function, dict) else None
+            if load["loadType"] != "TorqueVector" or not isinstance(function, TorqueLawLoad):
+                return [Reading(item, "joint", f"load {number} ({load['loadType']}) without a torque law function")]
+            carried[body] = function.sign
+            functions.append(function)
+        joints = [j.name for j in self.mech.joints if j.kind == "revolute" and carried == {
+            b: s for b, s in ((j.body_j, 1.0), (j.body_i, -1.0)) if b != GROUND}]
+        if not joints or not functions:
+            return [Reading(item, "joint", f"loads on {carried or 'no body'}", "body: sign of T")]
+        held = functions[0].law
+        solver_times = self.times - self.t0
+        values = np.array([[f(self.mbs, t, 0)[2] * f.sign for t in solver_times] for f in functions])
+        off = float(np.max(np.abs(values - held.value(self.times))))
+        size = max(abs(held.torque), abs(held.amplitude)) or 1.0
+        note = "The load user function's law, T on body_j and −T on body_i"
+        if off > ROUNDING * size:
+            return [Reading(item, "joint", f"{joints[0]}, but the loads depart from their law by {off:.3g} N·m")]
+        return [Reading(item, "joint", joints[0], f"{note}, at every output instant within {off:.1g} N·m")] + [
+            Reading(item, quantity, float(getattr(held, quantity)), note, "set")
+            for quantity in ("torque", "amplitude", "frequency", "phase")]
 
     # -- scene ------------------------------------------------------------------
 

@@ -12,7 +12,11 @@ crank still — docs/engines.md). Only the scene's effects are added: gravity as
 `LoadMassProportional` when the scene has gravity, and a zero-stiffness
 `ObjectConnectorCoordinateSpringDamper` per damped joint (on the two
 rotation coordinates, or on the relative translation along a guide, which
-turns with body_i: `MarkerBodiesRelativeTranslationCoordinate`).
+turns with body_i: `MarkerBodiesRelativeTranslationCoordinate`). A torque
+law is a pair of `LoadTorqueVector`s, T(t) on body_j and −T(t) on body_i
+(none on the ground), whose `loadVectorUserFunction` evaluates the law at
+the solver's time: an applied torque, exact in time, not a servo. A degree
+of freedom no drive prescribes gets no constraint at all.
 
 Every reaction and every node state is recorded by a sensor kept in memory
 (`storeInternal=True`, `writeToFile=False`); `simulation_settings` makes
@@ -23,6 +27,7 @@ Only this module imports the engine library, so importing the adapter
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -31,9 +36,12 @@ import exudyn.itemInterface as eii
 import numpy as np
 import pandas as pd
 
-from mechval.audit import force_item
+from mechval.adapter import Unrepresentable
+from mechval.audit import force_item, torque_law_item
+from mechval.dynamics import raw_dynamics
 from mechval.kinematics import point_motion, rotate
-from mechval.mechanism import GROUND, Body, BodyTorque, Drive, Joint, Mechanism, SpringDamper
+from mechval.mechanism import GROUND, Body, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
+from mechval.planar_constraints import MechanismError
 
 #: The adapter's solver names (setting "solver") → Exudyn's solvers.
 SOLVERS = {"index2": exu.DynamicSolverType.TrapezoidalIndex2, "index3": exu.DynamicSolverType.GeneralizedAlpha}
@@ -59,22 +67,59 @@ class ExudynModel:
 
     system: exu.SystemContainer
     mbs: exu.MainSystem
+    #: The state it starts from (`start_state`), raw motion columns.
+    start: pd.DataFrame | None = None
     reference: dict[str, np.ndarray] = field(default_factory=dict)
     body_sensors: dict[str, dict[str, int]] = field(default_factory=dict)
     joint_sensors: dict[str, int] = field(default_factory=dict)
     #: Per drive (by its name, in `Mechanism.drives` order) the sensor of
     #: its constraint's λ.
     drive_sensors: dict[str, int] = field(default_factory=dict)
+    #: Per torque law (by its name) the sensor of one of its loads and that
+    #: load's sign (+1 on body_j, −1 on body_i): sign × its z component is
+    #: the torque T(t) the solver applied.
+    torque_sensors: dict[str, tuple[int, float]] = field(default_factory=dict)
 
     @property
     def drive_sensor(self) -> int:
-        """The first drive's λ sensor (every sensor records every step)."""
+        """The first drive's λ sensor."""
         return next(iter(self.drive_sensors.values()))
+
+    @property
+    def clock_sensor(self) -> int:
+        """A sensor whose first column is the solver's time at every step
+        (every sensor records every step; every mechanism has a body)."""
+        return next(iter(next(iter(self.body_sensors.values())).values()))
+
+
+def forward_motion(mechanism: Mechanism, t: np.ndarray) -> pd.DataFrame:
+    """The forward-dynamics reference's raw columns at instants t, from its
+    consistent initial state at t[0]; a mechanism it refuses (an
+    inconsistent initial state, too few initial values) is Unrepresentable
+    with the reference's key and reason."""
+    try:
+        return raw_dynamics(mechanism, t).frame
+    except MechanismError as exc:
+        raise Unrepresentable(exc.key, exc.reason) from None
+
+
+def start_state(mechanism: Mechanism, t0: float) -> pd.DataFrame:
+    """The reference state at t0 as raw motion columns (one row): the
+    prescribed motion, or for a torque-driven or free mechanism (which
+    starts at its first instant) the forward-dynamics reference's
+    consistent initial state with its accelerations."""
+    if mechanism.forward_dynamics:
+        return forward_motion(mechanism, np.array([t0]))
+    start = mechanism.motion(np.array([t0]))
+    if not np.all(np.isfinite(start.to_numpy(dtype=float))):
+        raise ValueError(f"exudyn: the reference cannot give a consistent state at the pre-roll start "
+                         f"t = {t0!r} (the loop cannot close there); shorten the pre-roll")
+    return start
 
 
 def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
-    """The Exudyn model of `mechanism`, in the reference state at t0; the
-    solver's time 0 is t0.
+    """The Exudyn model of `mechanism`, in the reference state at t0
+    (`start_state`); the solver's time 0 is t0.
 
     Reference coordinates are the reference pose at t0 and initial
     velocities the reference velocities, so the start is consistent; the
@@ -84,11 +129,8 @@ def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
     """
     system = exu.SystemContainer()
     mbs = system.AddSystem()
-    model = ExudynModel(system, mbs)
-    start = mechanism.motion(np.array([t0]))
-    if not np.all(np.isfinite(start.to_numpy(dtype=float))):
-        raise ValueError(f"exudyn: the reference cannot give a consistent state at the pre-roll start "
-                         f"t = {t0!r} (the loop cannot close there); shorten the pre-roll")
+    start = start_state(mechanism, t0)
+    model = ExudynModel(system, mbs, start)
 
     ground = mbs.AddObject(eii.ObjectGround())
     ground_node = mbs.AddNode(eii.NodePointGround())
@@ -111,6 +153,8 @@ def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
             _add_spring(mbs, mechanism, force, objects)
         else:
             _add_torque(mbs, force, objects)
+    for law in mechanism.torque_drives:
+        model.torque_sensors[law.name] = _add_torque_law(mbs, mechanism, law, objects, t0)
     mbs.Assemble()
     # Bodies' nodes are the only ones with ODE2 coordinates, in this order.
     mbs.systemData.SetODE2Coordinates_tt(accelerations, configuration=exu.ConfigurationType.Initial)
@@ -264,6 +308,41 @@ def _add_torque(mbs: exu.MainSystem, torque: BodyTorque, objects: dict[str, int]
     marker = mbs.AddMarker(eii.MarkerBodyRigid(bodyNumber=objects[torque.body], localPosition=[0.0, 0.0, 0.0]))
     mbs.AddLoad(eii.LoadTorqueVector(name=force_item(torque), markerNumber=marker,
                                      loadVector=[0.0, 0.0, float(torque.torque)]))
+
+
+class TorqueLawLoad:
+    """A torque law as Exudyn's `loadVectorUserFunction` (mbs, t, load) →
+    [0, 0, sign·T(t0 + t)]: the solver's time t starts at 0 at t0. Plain
+    floats: it runs at every Newton iteration. Its parameters are kept on
+    it for the model audit."""
+
+    def __init__(self, law: TorqueLaw, sign: float, t0: float):
+        self.law, self.sign, self.t0 = law, sign, t0
+        self._c = sign * float(law.torque)
+        self._a = sign * float(law.amplitude)
+        self._w = 2.0 * math.pi * float(law.frequency)
+        self._p = float(law.phase)
+
+    def __call__(self, mbs, t, load):  # noqa: ARG002 - Exudyn's signature
+        return [0.0, 0.0, self._c + self._a * math.sin(self._w * (t + self.t0) + self._p)]
+
+
+def _add_torque_law(mbs: exu.MainSystem, mechanism: Mechanism, law: TorqueLaw, objects: dict[str, int],
+                    t0: float) -> tuple[int, float]:
+    """T(t) on body_j and −T(t) on body_i (`LoadTorqueVector`s named after
+    the law, with `TorqueLawLoad`; none on the ground). Returns the sensor
+    of the first load and its sign."""
+    joint = mechanism.joint(law.joint)
+    sensors = []
+    for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
+        if body == GROUND:
+            continue
+        marker = mbs.AddMarker(eii.MarkerBodyRigid(bodyNumber=objects[body], localPosition=[0.0, 0.0, 0.0]))
+        load = mbs.AddLoad(eii.LoadTorqueVector(name=torque_law_item(law), markerNumber=marker,
+                                                loadVector=[0.0, 0.0, 0.0],
+                                                loadVectorUserFunction=TorqueLawLoad(law, sign, t0)))
+        sensors.append((mbs.AddSensor(eii.SensorLoad(loadNumber=load, storeInternal=True, writeToFile=False)), sign))
+    return sensors[0]
 
 
 def simulation_settings(settings: Mapping[str, Any], duration: float, dt: float) -> exu.SimulationSettings:

@@ -6,6 +6,7 @@ the model audit (`exudyn_audit`) both build on this module.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, Mapping
 
 import exudyn as exu
@@ -16,28 +17,34 @@ from mechval.health import drive_errors
 from mechval.kinematics import joint_gaps, point_motion, rotate
 from mechval.mechanism import GROUND, MOTION_QUANTITIES, Mechanism
 
-from .exudyn_model import SOLVERS, ExudynModel, build_model, simulation_settings
+from .exudyn_model import SOLVERS, ExudynModel, build_model, forward_motion, simulation_settings
 
 #: The index-3 force transient after the start shrinks like ρ^n over n
 #: steps, whatever the step (docs/engines.md); the pre-roll lets it decay
 #: by this factor.
 INDEX3_TRANSIENT_DECAY = 1e-8
 NO_PRISMATIC_COUPLE = "Exudyn 1.13.6 reports no couple of ObjectJointPrismatic2D (ForceLocal[2] stays 0)"
+UNSOLVED_START = ("Exudyn 1.13.6 reports zero reactions at its first instant unless its own initial-acceleration "
+                  "solve ran (compute_initial_accelerations), and a run with no pre-roll starts at the first sample")
 
 
 def prepare(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]
             ) -> tuple[ExudynModel, exu.SimulationSettings, float]:
     """The model, the solver settings and the start t0 = times[0] minus the
-    pre-roll; the solver's time 0 is t0."""
+    pre-roll (none for a torque-driven or free mechanism: its motion is
+    known only from times[0] on); the solver's time 0 is t0."""
     if settings["solver"] not in SOLVERS:
         raise ValueError(f"exudyn: solver must be one of {tuple(SOLVERS)}, got {settings['solver']!r}")
     dt = float(settings["timestep"])
     pre_roll = int(settings["pre_roll_steps"])
-    if pre_roll < 1:
+    if mechanism.forward_dynamics and pre_roll != 0:
+        raise ValueError(f"exudyn: pre_roll_steps must be 0 for a torque-driven or free mechanism (it starts "
+                         f"at its first instant), got {pre_roll}")
+    if not mechanism.forward_dynamics and pre_roll < 1:
         # At its first instant Exudyn reports zero reactions and echoes the
         # supplied accelerations: t = 0 must be a solved step.
         raise ValueError(f"exudyn: pre_roll_steps must be at least 1, got {pre_roll}")
-    if settings["solver"] == "index3":
+    if settings["solver"] == "index3" and pre_roll:
         pre_roll = max(pre_roll, index3_transient_steps(float(settings["spectral_radius"])))
     t0 = float(times[0]) - pre_roll * dt
     return build_model(mechanism, t0), simulation_settings(settings, float(times[-1]) - t0, dt), t0
@@ -51,6 +58,26 @@ def index3_transient_steps(spectral_radius: float) -> int:
     if spectral_radius == 0.0:
         return 1
     return int(np.ceil(np.log(INDEX3_TRANSIENT_DECAY) / np.log(spectral_radius)))
+
+
+def scene_motion(mechanism: Mechanism) -> Mechanism:
+    """The mechanism whose `motion` gives its motion over the run: as it is
+    for prescribed motion; for a torque-driven or free mechanism, whose
+    motion is not known before it is integrated, the forward-dynamics
+    reference from the grid's first instant (each grid integrated once),
+    so that the step rule and the force scale read it like kinematics."""
+    if not mechanism.forward_dynamics:
+        return mechanism
+    frames: dict[tuple[float, float, int], pd.DataFrame] = {}
+
+    def motion(t: np.ndarray) -> pd.DataFrame:
+        t = np.asarray(t, dtype=float)
+        key = (float(t[0]), float(t[-1]), len(t))
+        if key not in frames:
+            frames[key] = forward_motion(mechanism, t)
+        return frames[key]
+
+    return dataclasses.replace(mechanism, motion=motion)
 
 
 def force_scale(mechanism: Mechanism, times: np.ndarray, dense: int = 2001) -> float:
@@ -89,10 +116,12 @@ def node_states(model: ExudynModel) -> dict[str, dict[str, np.ndarray]]:
 
 
 def frame_of(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str, np.ndarray]],
-           rows: np.ndarray, times: np.ndarray, t_all: np.ndarray
+           rows: np.ndarray, times: np.ndarray, t_all: np.ndarray, solved_start: bool = False
            ) -> tuple[pd.DataFrame, dict[str, str], np.ndarray, np.ndarray]:
     """Raw columns at the sample rows and the reasons for missing ones, plus
-    the loop-closure gap and the drive tracking error at every stored step."""
+    the loop-closure gap and the drive tracking error at every stored step.
+    The reactions and drive efforts at the first stored step are missing
+    unless Exudyn solved for them there (`solved_start`)."""
     motion = _frame_motion(mechanism, state, t_all)
     columns = {"t": np.asarray(times, dtype=float)}
     columns.update({name: motion[name].to_numpy()[rows] for name in mechanism.motion_columns()})
@@ -110,9 +139,17 @@ def frame_of(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str
     for drive in mechanism.drives:
         effort = drive.effort_column(mechanism.joint(drive.joint).kind)
         columns[effort] = -model.mbs.GetSensorStoredData(model.drive_sensors[drive.name])[rows, 1]
+    if not solved_start and rows[0] == 0:
+        for column in (c for c in mechanism.reaction_columns() if c in columns):   # not the torque laws
+            columns[column][0] = np.nan
+            missing.setdefault(column, UNSOLVED_START)
+    for law in mechanism.torque_drives:     # the applied torque, known at every step
+        sensor, sign = model.torque_sensors[law.name]
+        columns[f"{law.name}.T"] = sign * model.mbs.GetSensorStoredData(sensor)[rows, 3]
 
     gap = joint_gaps(mechanism, motion)
-    return pd.DataFrame(columns), missing, gap, drive_errors(mechanism, motion)
+    tracking = drive_errors(mechanism, motion) if mechanism.drives else np.zeros(len(t_all))
+    return pd.DataFrame(columns), missing, gap, tracking
 
 
 def _frame_motion(mechanism: Mechanism, state: dict[str, dict[str, np.ndarray]],

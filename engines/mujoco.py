@@ -16,10 +16,32 @@ Modes (setting "mode"):
   at the end of the step, which would make the error O(dt)). The read-out
   costs one `mj_forward` per sample plus vectorised numpy; everything it
   needs is in fixed mjData fields, copied in one piece (`Snapshot`).
+  A torque-driven or free mechanism (`Mechanism.forward_dynamics`) starts
+  at the first instant, with no pre-roll (there is no prescribed path to
+  pre-roll along), from the forward-dynamics reference's consistent state
+  there (`mechval.dynamics.raw_dynamics` at times[:1]); only its remaining
+  prescribed drives get clocks. Each `TorqueLaw` is an actuator on a fixed
+  tendon whose length is the joint's θj − θi, with integrator activation
+  dynamics and gain 1: its force is its activation, which starts at T(t0)
+  and whose rate is the control. The rollout's control over step n is the
+  law's slope (T(t_n+1) − T(t_n))/dt, so the applied torque is the law at
+  every step boundary (every sample) and linear in between, in every RK4
+  stage, with no Python per step. Why not the alternatives: a control held
+  over the step (a motor, or qfrc_applied per step) is the law only at the
+  step's start, an O(dt) error in the motion, and its column at a sample
+  is not T(t); a control callback (mjcb_control) sees each stage's time
+  but runs Python four times per step, process-wide, and rules out the
+  rollout. The column "NAME.T" is the actuator's force read back at the
+  sample. The default step takes Ω from the forward-dynamics reference at
+  rtol 1e-6 (`planned_motion`): the mechanism's own `motion` describes
+  no run there.
 - "inverse": `mj_inverse` at the reference q, q̇, q̈ with constraints off;
   qfrc_inverse is split by least squares into the drive torque on its
   coordinate and the loop force through the cut pin's Jacobian. This checks
-  frames, signs and inertias independently of time integration.
+  frames, signs and inertias independently of time integration. For a
+  torque-driven or free mechanism the reference state is the forward
+  dynamics' integrated motion, and each torque law's generalized force is
+  known (its activation set to T(t)) and taken out before the split.
 
 Conversion of native outputs to Fij (force BY body_i ON body_j, world axes,
 at the sample instant):
@@ -69,6 +91,7 @@ on fourbar-seed.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any, ClassVar, Mapping
 
@@ -78,13 +101,28 @@ import pandas as pd
 from mechval.adapter import FEATURES, as_float, ceil_or_inf, steps_per_interval
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step
 from mechval.mechanism import Mechanism
+from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from .mujoco_audit import audit_model
 from .mujoco_model import INTEGRATORS, SOLIMP
-from .mujoco_run import Model, warnings_silenced
+from .mujoco_run import Model, reference_motion, warnings_silenced
 
 MODES = ("forward", "inverse")
+#: The forward-dynamics reference's tolerance when it only tells the step
+#: rule how fast a torque-driven or free mechanism moves (Ω within a few
+#: per cent is all the rule needs).
+RATE_RTOL = 1e-6
+
+
+def planned_motion(mechanism: Mechanism) -> Mechanism:
+    """The mechanism whose `motion` is what the step rule should look at:
+    its prescribed motion, or for a torque-driven or free one the
+    forward-dynamics reference from its initial state (its own `motion`
+    then describes no run)."""
+    if not mechanism.forward_dynamics:
+        return mechanism
+    return dataclasses.replace(mechanism, motion=lambda t: reference_motion(mechanism, t, RATE_RTOL))
 
 
 class MujocoAdapter(EngineAdapter):
@@ -154,7 +192,7 @@ class MujocoAdapter(EngineAdapter):
         return {
             "mode": "forward",
             "integrator": "RK4",
-            "timestep": default_step(mechanism, times),
+            "timestep": default_step(planned_motion(mechanism), times),
             "refine": 1,
             "solref_steps": 10.0,
             "drive_solref_steps": 1.0,
@@ -163,8 +201,24 @@ class MujocoAdapter(EngineAdapter):
             "tolerance": 0.0,
             "iterations": 3,
             "clock_mass": 1e12,
-            "preroll_timeconsts": 20.0,
+            # A torque-driven or free run has no path to pre-roll along.
+            "preroll_timeconsts": 0.0 if mechanism.forward_dynamics else 20.0,
         }
+
+    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
+                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """As every adapter's; a pre-roll asked of a torque-driven or free run
+        is refused with its origin and key: such a run starts at the first
+        instant from its initial state (`planned_steps` counts none)."""
+        settings = super().settings_for(scenario, mechanism, overrides)
+        if mechanism.forward_dynamics and settings["preroll_timeconsts"]:
+            in_file = "preroll_timeconsts" in scenario.settings_for(self.name)
+            in_override = "preroll_timeconsts" in (overrides or {})
+            raise ScenarioError(scenario.source if in_file and not in_override else "settings override",
+                                f"engines.{self.name}.preroll_timeconsts",
+                                "a torque-driven or free run starts at the first instant from its initial state, "
+                                "with no pre-roll: leave it out or set 0")
+        return settings
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         return audit_model(mechanism, times, settings)
@@ -180,7 +234,8 @@ class MujocoAdapter(EngineAdapter):
             frame, info = runner()
         solref = lambda eq: " ".join(f"{v:.6g}" for v in model.m.eq_solref[eq])
         info.update(build_time_s=build_time, step=model.dt, solimp=settings["solimp"],
-                    solref=solref(model.loop_eq) if model.loop_eqs else "none", drive_solref=solref(model.drive_eq))
+                    solref=solref(model.loop_eq) if model.loop_eqs else "none",
+                    drive_solref=solref(model.drive_eq) if model.drive_eqs else "none")
         return RawRun(frame, {}, RunInfo.of(info))
 
 

@@ -32,9 +32,10 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item, expected_model,
-                           force_item, inertia_readings, joint_item, listing, point_readings, to_body)
-from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper
+from mechval.audit import (AUDIT_RTOL, SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item,
+                           expected_model, force_item, inertia_readings, joint_item, listing, point_readings, to_body,
+                           torque_law_item)
+from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 from .mujoco_run import Model
 
@@ -44,6 +45,8 @@ ENGINE = "mujoco"
 #: A damper matches a joint when its Jacobian row is a multiple of the
 #: joint's relative-rate row to this relative residual (rounding only).
 PARALLEL = 1e-12
+#: A torque law's parameters (its rows besides "joint").
+LAW_PARAMETERS = ("torque", "amplitude", "frequency", "phase")
 
 
 def audit_model(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
@@ -70,13 +73,12 @@ class Reader:
         self.start = model.start_motion
         self.body_name = {bid: name for name, bid in model.bid.items()} | {0: GROUND}
         self.clock_jnts = [model.jid[clock] for clock in model.clocks]
-        self.clock_body = int(self.m.jnt_bodyid[self.clock_jnts[0]])
         for k, jnt in enumerate(self.clock_jnts):
             self.body_name[int(self.m.jnt_bodyid[jnt])] = "clock" if k == 0 else f"clock {k}"
         #: The force elements' tendons and the body torques' actuators: each
         #: is audited as its force element, not as a spring, damper or motor.
         self.element_tendons = set(model.tendon.values())
-        self.torque_actuators = set(model.actuator.values())
+        self.torque_actuators = set(model.actuator.values()) | set(model.law_actuators)
         self.off = int(self.m.opt.disableflags)
 
     def disabled(self, bit) -> bool:
@@ -95,6 +97,7 @@ class Reader:
                 for j in self.mech.joints]
         out += [r for k, drive in enumerate(self.mech.drives) for r in self.drive(k, drive)]
         out += [r for k, force in enumerate(self.mech.forces) for r in self.force(k, force)]
+        out += [r for k, law in enumerate(self.mech.torque_drives) for r in self.torque_law(k, law)]
         return out + self.scene(other_dampers) + self.notes()
 
     # -- bodies -------------------------------------------------------------------
@@ -189,6 +192,17 @@ class Reader:
             mujoco.mj_jac(self.m, self.d, jacp, jacr, self.d.xipos[bid] if point is None else point, bid)
         return jacp, jacr
 
+    def fixed_tendon_row(self, t: int) -> np.ndarray | None:
+        """The Jacobian row of a fixed tendon (its coefficients on the dofs),
+        or None if it wraps anything but joints."""
+        m = self.m
+        row, adr = np.zeros(m.nv), m.tendon_adr[t]
+        for w in range(adr, adr + m.tendon_num[t]):
+            if m.wrap_type[w] != mujoco.mjtWrap.mjWRAP_JOINT:
+                return None
+            row[m.jnt_dofadr[m.wrap_objid[w]]] += m.wrap_prm[w]
+        return row
+
     def damper_rows(self) -> list[tuple[str, float, np.ndarray | None]]:
         """(label, coefficient, Jacobian row or None if not linear) of every
         damper in the model."""
@@ -200,13 +214,7 @@ class Reader:
         for t in np.flatnonzero(m.tendon_damping):
             if t in self.element_tendons:
                 continue                         # a spring-damper's (`force`)
-            row, adr = np.zeros(m.nv), m.tendon_adr[t]
-            for k in range(adr, adr + m.tendon_num[t]):
-                if m.wrap_type[k] != mujoco.mjtWrap.mjWRAP_JOINT:
-                    row = None
-                    break
-                row[m.jnt_dofadr[m.wrap_objid[k]]] += m.wrap_prm[k]
-            found.append((f"tendon {t}", float(m.tendon_damping[t]), row))
+            found.append((f"tendon {t}", float(m.tendon_damping[t]), self.fixed_tendon_row(t)))
         for field in ("dof_dampingpoly", "tendon_dampingpoly", "actuator_damping", "actuator_dampingpoly"):
             found += [(f"{field}[{index}]", float("nan"), None) for index in nonzero(getattr(m, field))]
         return found
@@ -329,12 +337,9 @@ class Reader:
                     "element for it; the read-out adds it to the couples of the joints that carry it.")
             return [Reading(item, "body", spec.body, note, "note"), Reading(item, "torque", spec.torque, note, "note")]
         act, t = self.model.actuator[k], self.model.tendon[k]
-        adr, num = m.tendon_adr[t], m.tendon_num[t]
-        row = np.zeros(m.nv)
-        for w in range(adr, adr + num):
-            if m.wrap_type[w] != mujoco.mjtWrap.mjWRAP_JOINT:
-                return [Reading(item, "body", f"tendon {t} is not over joints")]
-            row[m.jnt_dofadr[m.wrap_objid[w]]] += m.wrap_prm[w]
+        row = self.fixed_tendon_row(t)
+        if row is None:
+            return [Reading(item, "body", f"tendon {t} is not over joints")]
         if m.actuator_trntype[act] != mujoco.mjtTrn.mjTRN_TENDON or m.actuator_trnid[act, 0] != t:
             return [Reading(item, "body", f"actuator {act} does not act on tendon {t}")]
         body = next((b.name for b in self.mech.bodies if np.array_equal(self.jacobian(b.name)[1][2], row)),
@@ -345,6 +350,46 @@ class Reader:
         note = "actuator bias force × gear on a fixed tendon over the body's path hinges"
         return [Reading(item, "body", body, "the tendon row equals the body's angular-velocity Jacobian"),
                 Reading(item, "torque", torque if constant else "state-dependent", note)]
+
+    def torque_law(self, k: int, law: TorqueLaw) -> list[Reading]:
+        """An actuator on a fixed tendon whose row is the joint's relative
+        rate ω_j − ω_i (MuJoCo's own Jacobians, `rate_row`), its force its
+        activation (integrator dynamics, fixed gain, no bias). The law is in
+        the rollout's controls, not in the model: its parameters are as
+        set, and the torque the run applies at every step boundary, gear ×
+        gain × the activation read from the start state plus the controls
+        integrated, is checked against T(t) (a deviation reads 'differs')."""
+        m, d, item = self.m, self.d, torque_law_item(law)
+        act = self.model.law_actuators[k]
+        if m.actuator_trntype[act] != mujoco.mjtTrn.mjTRN_TENDON:
+            return [Reading(item, "joint", f"actuator {act} does not act on a tendon")]
+        t = m.actuator_trnid[act, 0]
+        row = self.fixed_tendon_row(t)
+        if row is None:
+            return [Reading(item, "joint", f"tendon {t} is not over joints")]
+        joint = next((j.name for j in self.mech.joints if j.kind == "revolute"
+                      and np.array_equal(self.rate_row(j), row)), "no joint's relative angle")
+        readings = [Reading(item, "joint", joint, "the tendon row equals the joint's ω_j − ω_i Jacobian row")]
+        shape = (m.actuator_dyntype[act] == mujoco.mjtDyn.mjDYN_INTEGRATOR
+                 and m.actuator_gaintype[act] == mujoco.mjtGain.mjGAIN_FIXED
+                 and m.actuator_biastype[act] == mujoco.mjtBias.mjBIAS_NONE
+                 and not self.disabled(DSBL.mjDSBL_ACTUATION))
+        nstep = self.model.nstep
+        start = float(np.asarray(self.start["t"]).reshape(-1)[0])
+        steps = start + self.model.dt * np.arange(nstep + 1)
+        activation = d.act[m.actuator_actadr[act]] + np.concatenate(
+            [[0.0], np.cumsum(self.model.dt * self.model.controls(nstep)[:, act])])
+        applied = m.actuator_gear[act, 0] * m.actuator_gainprm[act, 0] * activation
+        deviation = float(np.max(np.abs(applied - law.value(steps))))
+        size = max(abs(law.torque), abs(law.amplitude)) or 1.0
+        if not shape or not deviation <= AUDIT_RTOL * size:
+            why = ("not an integrator-activation actuator with a fixed gain and no bias" if not shape else
+                   f"the torque applied at the step boundaries is off T(t) by up to {deviation:.3g} N·m")
+            return readings + [Reading(item, quantity, why) for quantity in LAW_PARAMETERS]
+        note = (f"the rollout's controls (the law's slope per step); read back: gear × gain × activation is T(t) "
+                f"at all {nstep + 1} step boundaries to {deviation:.1g} N·m, linear in between")
+        return readings + [Reading(item, quantity, float(getattr(law, quantity)), note, "set")
+                           for quantity in LAW_PARAMETERS]
 
     def gravity(self) -> np.ndarray:
         return np.zeros(3) if self.disabled(DSBL.mjDSBL_GRAVITY) else np.array(self.m.opt.gravity)
@@ -411,15 +456,24 @@ class Reader:
         solref = lambda eq: " ".join(f"{v:.6g}" for v in m.eq_solref[eq])
         solimp = lambda eq: " ".join(f"{v:g}" for v in m.eq_solimp[eq])
         integrator = mujoco.mjtIntegrator(m.opt.integrator).name
-        return [
-            Reading(item, "clock body", f"{m.body_mass[self.clock_body]:g} kg on a slide along z",
-                    "Artificial: its coordinate is φ(t) (a constant force gives it α); the drive equality ties the "
-                    "crank to it. Out of the plane, so in-plane gravity does not act on it; so heavy that the "
-                    "drive's reaction barely moves it.", "note"),
-            Reading(item, "loop closure", f"soft: solref {solref(self.model.loop_eq)}, solimp {solimp(self.model.loop_eq)}",
-                    "Numerical compliance of the connect equality (time constant, damping ratio).", "note"),
-            Reading(item, "drive constraint", f"soft: solref {solref(self.model.drive_eq)}, solimp {solimp(self.model.drive_eq)}",
-                    "Numerical compliance of the joint equality.", "note"),
-            Reading(item, "integrator", f"{integrator}, dt {m.opt.timestep:.6g} s, Newton tolerance "
-                                        f"{m.opt.tolerance:g}, {m.opt.iterations} iterations", "Numerical.", "note"),
-        ]
+        if self.clock_jnts:
+            clock = Reading(item, "clock body", f"{m.body_mass[m.jnt_bodyid[self.clock_jnts[0]]]:g} kg on a slide along z",
+                            "Artificial: its coordinate is φ(t) (a constant force gives it α); the drive equality "
+                            "ties the crank to it. Out of the plane, so in-plane gravity does not act on it; so "
+                            "heavy that the drive's reaction barely moves it.", "note")
+        else:
+            clock = Reading(item, "clock body", "none", "No prescribed drive: no clock and no drive equality; every "
+                                                        "degree of freedom is integrated from the start state.", "note")
+        notes = [clock]
+        if self.model.loop_eqs:
+            notes.append(Reading(item, "loop closure", f"soft: solref {solref(self.model.loop_eq)}, "
+                                                       f"solimp {solimp(self.model.loop_eq)}",
+                                 "Numerical compliance of the connect equality (time constant, damping ratio).",
+                                 "note"))
+        if self.model.drive_eqs:
+            notes.append(Reading(item, "drive constraint", f"soft: solref {solref(self.model.drive_eq)}, "
+                                                           f"solimp {solimp(self.model.drive_eq)}",
+                                 "Numerical compliance of the joint equality.", "note"))
+        return notes + [Reading(item, "integrator", f"{integrator}, dt {m.opt.timestep:.6g} s, Newton tolerance "
+                                                    f"{m.opt.tolerance:g}, {m.opt.iterations} iterations",
+                                "Numerical.", "note")]

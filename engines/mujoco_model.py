@@ -28,6 +28,12 @@ Model layout (docs/engines.md, MuJoCo):
   −k·(ℓ − ℓ0) − c·ℓ̇ along the line. A body torque is an actuator with a
   constant bias force (the torque, no control gain) on a fixed tendon over
   the hinges of the body's tree path, whose rate is the body's ω.
+- A torque law (T on body_j, −T on body_i) is an actuator on a fixed tendon
+  whose length is the joint's relative angle θj − θi (`angle_coefficients`:
+  the joint's own hinge, or path sums for a cut pin), its force its
+  activation (integrator dynamics), fed the law's slope per step
+  (`torque_law_controls`). A degree of freedom that no drive prescribes
+  gets no clock and no equality.
 - No geoms, contacts disabled, autoreset disabled, radians, explicit
   inertials, no joint damping/armature/friction/stiffness/limits. `refsafe`
   is off so that solref is used as written (it would raise the drive's
@@ -245,6 +251,11 @@ def force_name(k: int) -> str:
     return f"f{k}"
 
 
+def torque_law_name(k: int) -> str:
+    """The tendon and the actuator of torque law k."""
+    return f"t{k}"
+
+
 def torque_coefficients(topo: Topology, body: str) -> dict[str, float]:
     """Joint-coordinate coefficients of a body's angle θ: 1 on every hinge
     of its tree path (slides do not turn). A constant torque τ on the body
@@ -255,17 +266,22 @@ def torque_coefficients(topo: Topology, body: str) -> dict[str, float]:
     return {tj.joint.name: 1.0 for tj in topo.path(body) if tj.joint.kind == "revolute"}
 
 
+def angle_coefficients(topo: Topology, joint: Joint) -> dict[str, float]:
+    """Joint-coordinate coefficients of a revolute joint's relative angle
+    θj − θi, as sums over the hinges of both bodies' tree paths (±1 on the
+    joint's own hinge when it is in the tree). A torque T on body_j and −T
+    on body_i is the generalized force T times these (its Jacobian)."""
+    coef: dict[str, float] = {}
+    for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
+        for name, c in torque_coefficients(topo, body).items():
+            coef[name] = coef.get(name, 0.0) + sign * c
+    return {name: c for name, c in coef.items() if c != 0.0}
+
+
 def damper_coefficients(topo: Topology, joint: Joint) -> dict[str, float]:
     """Joint-coordinate coefficients of the damper rate of `joint`: its own
     coordinate for a tree joint, ω_j − ω_i as path sums for the cut pin."""
-    if joint not in topo.cuts:
-        return {joint.name: 1.0}
-    coef: dict[str, float] = {}
-    for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
-        for tj in topo.path(body):
-            if tj.joint.kind == "revolute":
-                coef[tj.joint.name] = coef.get(tj.joint.name, 0.0) + sign
-    return {name: c for name, c in coef.items() if c != 0.0}
+    return angle_coefficients(topo, joint) if joint in topo.cuts else {joint.name: 1.0}
 
 
 def turning_groups(mech: Mechanism) -> list[set[str]]:
@@ -391,6 +407,15 @@ def mjcf(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], dt: float
             tendons.append(f'<fixed name="{force_name(k)}">{coef}</fixed>')
             actuators.append(f'<general name="{force_name(k)}" tendon="{force_name(k)}" gainprm="0" biastype="affine" '
                              f'biasprm="{_vec(force.torque)} 0 0" ctrllimited="false" forcelimited="false"/>')
+    for k, law in enumerate(mech.torque_drives):
+        # Force = activation, whose rate is the control: the rollout's
+        # controls make it the law at every step boundary and linear in
+        # between, in every RK4 stage (`torque_law_controls`).
+        coef = "".join(f'<joint joint="{names.joint[n]}" coef="{_vec(c)}"/>'
+                       for n, c in angle_coefficients(topo, mech.joint(law.joint)).items())
+        tendons.append(f'<fixed name="{torque_law_name(k)}">{coef}</fixed>')
+        actuators.append(f'<general name="{torque_law_name(k)}" tendon="{torque_law_name(k)}" dyntype="integrator" '
+                         'gainprm="1" biastype="none" ctrllimited="false" forcelimited="false" actlimited="false"/>')
     for k, cut in enumerate(topo.cuts):
         i_site, j_site = names.sites(cut)
         loops.append(f'<connect name="{loop_name(k)}" site1="{j_site}" site2="{i_site}" solref="{solref}" '
@@ -455,3 +480,14 @@ def coordinates(mech: Mechanism, topo: Topology,
         law = drive.law
         out[clock_name(k)] = (law.angle(t), law.rate(t), law.acceleration(t))
     return out
+
+
+def torque_law_controls(mech: Mechanism, start: float, dt: float, nstep: int) -> np.ndarray:
+    """(nstep, laws): the control of each torque law's actuator per step,
+    the slope (T(t_n+1) − T(t_n))/dt of its law over step n (t_n = start +
+    n·dt). Its activation, the actuator force, starts at T(start) and is
+    integrated by MuJoCo in every stage: the law at each step boundary and
+    linear in between (exact for a constant torque)."""
+    t = start + dt * np.arange(nstep + 1)
+    return np.column_stack([np.diff(law.value(t)) / dt for law in mech.torque_drives]) if mech.torque_drives \
+        else np.zeros((nstep, 0))

@@ -17,12 +17,15 @@ import numpy as np
 import pandas as pd
 from mujoco import rollout
 
+from mechval.dynamics import RTOL, raw_dynamics
 from mechval.engines.base import Unrepresentable
 from mechval.kinematics import separation_gap, slide_axis
 from mechval.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
+from mechval.planar_constraints import MechanismError
 
-from .mujoco_model import (Names, Topology, clock_name, coordinates, drive_name, force_name, force_sites,
-                           inertia_shift, loop_name, mjcf, raw_columns, topology, torque_coefficients)
+from .mujoco_model import (Names, Topology, angle_coefficients, clock_name, coordinates, drive_name, force_name,
+                           force_sites, inertia_shift, loop_name, mjcf, raw_columns, topology, torque_coefficients,
+                           torque_law_controls, torque_law_name)
 from .mujoco_snapshot import Snapshot
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -90,6 +93,18 @@ def compile_model(xml: str) -> mujoco.MjModel:
             raise Unrepresentable("engines.mujoco", f"MuJoCo cannot compile the model ({reason})") from None
 
 
+def reference_motion(mech: Mechanism, t: np.ndarray, rtol: float = RTOL) -> pd.DataFrame:
+    """The reference's raw columns at instants t: the prescribed motion, or
+    for a torque-driven or free mechanism the forward dynamics (at `rtol`)
+    from its initial values at t[0]; a refused initial state names its key."""
+    if not mech.forward_dynamics:
+        return mech.motion(t)
+    try:
+        return raw_dynamics(mech, t, rtol=rtol).frame
+    except MechanismError as exc:
+        raise Unrepresentable(exc.key, exc.reason) from None
+
+
 class Model:
     """A compiled MuJoCo model of the mechanism and its index maps."""
 
@@ -100,7 +115,9 @@ class Model:
         self.substeps = int(round(interval / dt))
         if abs(self.substeps * dt - interval) > 1e-9 * interval:
             raise ValueError(f"mujoco: the step {dt} does not divide the sample interval {interval}")
-        preroll = int(np.ceil(settings["preroll_timeconsts"] * settings["solref_steps"]))
+        # A torque-driven or free run starts at the first instant: there is
+        # no prescribed path to pre-roll along.
+        preroll = 0 if mech.forward_dynamics else int(np.ceil(settings["preroll_timeconsts"] * settings["solref_steps"]))
         self.preroll, self.start_motion = self.start(preroll, dt)
         self.topo: Topology = topology(mech, self.start_motion)
         self.names = names = Names.of(mech)
@@ -117,10 +134,16 @@ class Model:
                          for name in force_sites(k)})
         self.loop_eqs = [m.equality(loop_name(k)).id for k in range(len(self.topo.cuts))]
         self.drive_eqs = [m.equality(drive_name(k)).id for k in range(len(mech.drives))]
-        self.loop_eq, self.drive_eq = (self.loop_eqs or [None])[0], self.drive_eqs[0]
+        self.loop_eq, self.drive_eq = (self.loop_eqs or [None])[0], (self.drive_eqs or [None])[0]
         self.izz_shift = inertia_shift(mech)
-        self.drive = self.topo.of_joint(mech.drive.joint)
         self.drive_joints = [self.topo.of_joint(d.joint) for d in mech.drives]
+        self.drive = (self.drive_joints or [None])[0]
+        #: Per torque law its actuator (on a fixed tendon whose length is the
+        #: joint's θj − θi: `angle_coefficients`).
+        self.law_actuators = [m.actuator(torque_law_name(k)).id for k in range(len(mech.torque_drives))]
+        #: The data fields the read-out records (MuJoCo gives a model
+        #: without actuators no actuator_force array in the data buffer).
+        self.recorded = RECORDED + (("actuator_force",) if m.nu else ())
         #: Per force element its MuJoCo tendon.
         #: Per force element (by index) its MuJoCo tendon, and per body
         #: torque its actuator (none for a body that never turns:
@@ -132,7 +155,9 @@ class Model:
     def start(self, preroll: int, dt: float) -> tuple[int, dict[str, np.ndarray]]:
         """The longest pre-roll (≤ the requested one) along φ(t) over which
         the reference loop closes, and the reference motion at its start
-        (raw columns of one instant)."""
+        (raw columns of one instant). A torque-driven or free run starts
+        at the first instant from the forward-dynamics reference's
+        consistent state there (its pre-roll is 0)."""
         while preroll > 0:
             t = float(self.times[0]) - preroll * dt + dt * np.arange(preroll + 1)
             try:
@@ -143,9 +168,12 @@ class Model:
             except ValueError:                    # the reference refuses those instants
                 pass
             preroll //= 2
-        return 0, raw_columns(self.mech.motion(self.times[:1]))
+        return 0, raw_columns(self.reference_motion(self.times[:1]))
 
     # -- state from the reference ------------------------------------------------
+
+    def reference_motion(self, t: np.ndarray) -> pd.DataFrame:
+        return reference_motion(self.mech, t)
 
     def set_reference(self, motion: Mapping[str, np.ndarray], row: int, coords) -> None:
         """Put the reference q, q̇, q̈ of instant `row` into the data."""
@@ -166,19 +194,39 @@ class Model:
 
     def initial_state(self) -> np.ndarray:
         """The full physics state at the start of the pre-roll (reference q, q̇
-        of every joint and the clock)."""
+        of every joint and the clock; each torque law's activation, its
+        actuator force, at its value then)."""
         m, d = self.m, self.d
         mujoco.mj_resetData(m, d)
         self.set_reference(self.start_motion, 0, coordinates(self.mech, self.topo, self.start_motion))
+        self.set_torque_laws(float(self.start_motion["t"][0]))
         state0 = np.empty(mujoco.mj_stateSize(m, FULL))
         mujoco.mj_getState(m, d, state0, FULL)
         return state0
 
+    def set_torque_laws(self, t: float) -> None:
+        """Each torque law's activation (its actuator's force) at T(t)."""
+        for law, act in zip(self.mech.torque_drives, self.law_actuators):
+            self.d.act[self.m.actuator_actadr[act]] = law.value(t)
+
+    def controls(self, nstep: int) -> np.ndarray:
+        """(nstep, nu) controls of the rollout: each torque law's slope over
+        each step (`torque_law_controls`), 0 for the other actuators (which
+        have no control gain)."""
+        control = np.zeros((nstep, self.m.nu))
+        start = float(self.start_motion["t"][0])
+        control[:, self.law_actuators] = torque_law_controls(self.mech, start, self.dt, nstep)
+        return control
+
     def forward(self) -> tuple[pd.DataFrame, dict[str, Any]]:
         m, d = self.m, self.d
         state0, nstep = self.initial_state(), self.nstep
+        # Controls only for torque laws (8 B per actuator and step; the
+        # other actuators have no control gain).
+        control = self.controls(nstep)[None] if self.law_actuators else None
         start = time.perf_counter()
-        states = rollout.rollout(m, d, state0[None, :], nstep=nstep)[0][0] if nstep else np.empty((0, len(state0)))
+        states = (rollout.rollout(m, d, state0[None, :], control, nstep=nstep)[0][0] if nstep
+                  else np.empty((0, len(state0))))
         wall = time.perf_counter() - start
         # Sample k is the state after step preroll + k·substeps; states[i]
         # is the state after step i + 1 (state0 is after none).
@@ -186,7 +234,7 @@ class Model:
         samples = np.empty((len(after), len(state0)))
         samples[after == 0] = state0
         samples[after > 0] = states[after[after > 0] - 1]
-        snapshot = Snapshot(d, RECORDED, len(samples))
+        snapshot = Snapshot(d, self.recorded, len(samples))
         loop_force, rows = np.empty((len(samples), 3 * len(self.loop_eqs))), None
         for k, state in enumerate(samples):
             mujoco.mj_setState(m, d, state, FULL)
@@ -220,7 +268,7 @@ class Model:
     def inverse(self) -> tuple[pd.DataFrame, dict[str, Any]]:
         m, d = self.m, self.d
         m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
-        motion = raw_columns(self.mech.motion(self.times))
+        motion = raw_columns(self.reference_motion(self.times))
         coords = coordinates(self.mech, self.topo, motion)
         dofs = [m.jnt_dofadr[self.jid[tj.joint.name]] for tj in self.topo.tree]
         cut_sites = [tuple(self.sid[s] for s in self.names.sites(cut)) for cut in self.topo.cuts]
@@ -232,7 +280,12 @@ class Model:
         for k, act in self.actuator.items():
             for joint, coef in torque_coefficients(self.topo, self.mech.forces[k].body).items():
                 known[m.jnt_dofadr[self.jid[joint]]] += coef * m.actuator_biasprm[act, 0] * m.actuator_gear[act, 0]
-        snapshot = Snapshot(d, RECORDED + ("qpos", "qvel"), len(self.times))
+        # The torque laws' generalized force at each instant, likewise.
+        law_rows = np.zeros((len(self.law_actuators), m.nv))
+        for row, law in zip(law_rows, self.mech.torque_drives):
+            for joint, coef in angle_coefficients(self.topo, self.mech.joint(law.joint)).items():
+                row[m.jnt_dofadr[self.jid[joint]]] += coef
+        snapshot = Snapshot(d, self.recorded + ("qpos", "qvel"), len(self.times))
         n, ncut = len(self.times), len(self.topo.cuts)
         cut_force, efforts = np.empty((n, ncut, 2)), np.empty((n, len(self.drive_joints)))
         signs = np.array([tj.sign for tj in self.drive_joints])
@@ -242,7 +295,9 @@ class Model:
             warnings += self.warning_counts()           # before mj_resetData clears them
             mujoco.mj_resetData(m, d)
             self.set_reference(motion, k, coords)
+            self.set_torque_laws(float(self.times[k]))
             mujoco.mj_inverse(m, d)
+            mujoco.mj_fwdActuation(m, d)              # the laws' actuator_force, for the read-out
             # qfrc_inverse = Σ e_drive·τ + Σ (J_j − J_i)ᵀ·λ over the mechanism's
             # coordinates (λ = in-plane force on body_j through each cut pin),
             # plus the body torques' actuator forces (known, taken out).
@@ -251,7 +306,8 @@ class Model:
                 mujoco.mj_jacSite(m, d, jac_i, None, site_i)
                 mujoco.mj_jacSite(m, d, jac_j, None, site_j)
                 columns.append((jac_j - jac_i)[:2].T)
-            solution = np.linalg.lstsq(np.column_stack(columns)[dofs], (d.qfrc_inverse - known)[dofs], rcond=None)[0]
+            applied = known + d.act[m.actuator_actadr[self.law_actuators]] @ law_rows
+            solution = np.linalg.lstsq(np.column_stack(columns)[dofs], (d.qfrc_inverse - applied)[dofs], rcond=None)[0]
             efforts[k] = signs * solution[:len(signs)]
             cut_force[k] = solution[len(signs):].reshape(ncut, 2)
             self.apply_loop_forces(cut_force[k])
@@ -350,7 +406,7 @@ class Model:
                 moment = torque + cross(S["subtree_com"][:, m.body_rootid[bid]] - p_j, force)
                 below = self.topo.subtree(tj.child)
                 body_torques = sum(torque for body, torque in torques if body in below)
-                col[f"{name}.M"] = tj.sign * (moment[:, 2] - self.cut_damper_couple(tj.child, col)
+                col[f"{name}.M"] = tj.sign * (moment[:, 2] - self.cut_couple(tj.child, col, S.get("actuator_force"))
                                               - self.inertia_shift_couple(tj.child, col) - body_torques)
                 axis = S["xaxis"][:, jid]
                 if name in driven or mech.forces:
@@ -364,35 +420,42 @@ class Model:
             col[f"{cut.name}.Fx"], col[f"{cut.name}.Fy"] = cut_force[:, k, 0], cut_force[:, k, 1]
         for k, drive in enumerate(mech.drives):
             col[drive.effort_column(mech.joint(drive.joint).kind)] = efforts[:, k]
+        for law, act in zip(mech.torque_drives, self.law_actuators):
+            col[f"{law.name}.T"] = S["actuator_force"][:, act]        # the torque on the tendon θj − θi
         names = ["t"] + mech.motion_columns() + mech.reaction_columns()
         # One 2-D block: a DataFrame from a dict of columns costs milliseconds.
         block = np.empty((len(self.times), len(names)))
         for k, name in enumerate(names):
             block[:, k] = col[name]
         frame = pd.DataFrame(block, columns=names)
-        drive_error = max(float(np.abs(tj.sign * S["qpos"][:, m.jnt_qposadr[self.jid[tj.joint.name]]]
-                                       - drive.law.angle(self.times)).max())
-                          for tj, drive in zip(self.drive_joints, mech.drives))
+        drive_error = max((float(np.abs(tj.sign * S["qpos"][:, m.jnt_qposadr[self.jid[tj.joint.name]]]
+                                        - drive.law.angle(self.times)).max())
+                           for tj, drive in zip(self.drive_joints, mech.drives)), default=0.0)
         info = {"closure_gap_max": float(self.gaps(S["site_xpos"], col).max()),
                 "drive_error_max": drive_error,
                 "time_stamp_error_max": float(np.abs(S["time"] - self.times).max())}
         return frame, info
 
-    def cut_damper_couple(self, child: str, col: Mapping[str, np.ndarray]) -> np.ndarray | float:
-        """The couple the cut pin's damper physically puts on the subtree of
-        `child`, when the pin joins that subtree to the rest.
+    def cut_couple(self, child: str, col: Mapping[str, np.ndarray],
+                   actuator_force: np.ndarray) -> np.ndarray | float:
+        """The couple a cut pin's damper and torque laws physically put on
+        the subtree of `child`, when the pin joins that subtree to the rest.
 
-        Its tendon applies the same generalized force through the hinges on
+        Their tendons apply the same generalized force through the hinges on
         the tree paths, so the motion is exact, but the couple lands on the
         path's bodies instead of the pin's: the moment MuJoCo transmits
         through a joint above the pin includes it, and it is taken out here.
         """
         below, total = self.topo.subtree(child), 0.0
+        omega = lambda b: 0.0 if b == GROUND else col[f"{b}.omega"]
+        laws = list(zip(self.mech.torque_drives, self.law_actuators))
         for cut in self.topo.cuts:
-            if cut.damping == 0.0 or (cut.body_i in below) == (cut.body_j in below):
+            if (cut.body_i in below) == (cut.body_j in below):
                 continue
-            omega = lambda b: 0.0 if b == GROUND else col[f"{b}.omega"]
-            couple_on_j = -cut.damping * (omega(cut.body_j) - omega(cut.body_i))
+            couple_on_j = -cut.damping * (omega(cut.body_j) - omega(cut.body_i)) if cut.damping else 0.0
+            for law, act in laws:
+                if law.joint == cut.name:
+                    couple_on_j = couple_on_j + actuator_force[:, act]
             total = total + (couple_on_j if cut.body_j in below else -couple_on_j)
         return total
 

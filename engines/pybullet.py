@@ -51,6 +51,7 @@ from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from .base import EngineAdapter, RawRun, default_step
 from .pybullet_audit import audit_model
+from .pybullet_model import planned_motion
 from .pybullet_run import run_model
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
@@ -60,6 +61,10 @@ RAD_PER_STEP = 0.002
 #: Steps along φ(t) before t = 0, from the reference state: the loop
 #: closure and the mid-step velocities settle before the first sample.
 PREROLL_STEPS = 10
+#: The step rule factor of a torque-driven or free run (its step from the
+#: forward-dynamics reference's peak rates, `planned_motion`), measured:
+#: docs/engines.md.
+FREE_RAD_PER_STEP = 0.002
 
 class PybulletAdapter(EngineAdapter):
     name = "pybullet"
@@ -81,6 +86,9 @@ class PybulletAdapter(EngineAdapter):
         return steps_per_interval(times, as_float(settings["timestep"])), as_float(settings["preroll_steps"])
 
     def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+        if mechanism.forward_dynamics:
+            return {"timestep": default_step(planned_motion(mechanism), times, rad_per_step=FREE_RAD_PER_STEP),
+                    "preroll_steps": 0, "layout": "split"}
         return {
             "timestep": default_step(mechanism, times, rad_per_step=RAD_PER_STEP),
             "preroll_steps": PREROLL_STEPS,

@@ -37,12 +37,12 @@ import pandas as pd
 
 from mechval.audit import (SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item,
                            expected_model, force_item, inertia_readings, joint_item, listing, point_readings,
-                           to_body)
+                           to_body, torque_law_item)
 from mechval.kinematics import slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism
 
 from .pybullet_run import Stepper, step_plan
-from .pybullet_model import BodyHandle, Model, build, p
+from .pybullet_model import BodyHandle, Model, build, p, planned_motion
 
 ENGINE = "pybullet"
 #: PyBullet's defaults for what has no getter (docs/engines.md, PyBullet 3.2.7).
@@ -62,7 +62,7 @@ def audit_model(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any])
         model = build(mech, dt, settings["layout"], t_start)
     try:
         stepper = Stepper(mech, model, times, per_sample, preroll)
-        reader = Reader(mech, model, mech.motion(np.array([t_start])), calls, stepper)
+        reader = Reader(mech, model, model.start, calls, stepper)
         return audit(expected_model(mech), reader.readings(peak_joint_rate(mech, times)))
     finally:
         p.disconnect(model.client)
@@ -96,8 +96,9 @@ def recorded_calls() -> Iterator[list[Call]]:
 def peak_joint_rate(mech: Mechanism, times: np.ndarray) -> float:
     """The largest |relative rate| of any joint over the run's samples
     (rad/s, or m/s for a slide: body_j's point relative to the point of
-    body_i it passes, along the axis), from the reference motion."""
-    motion = mech.motion(np.asarray(times, dtype=float))
+    body_i it passes, along the axis), from the reference motion (a
+    torque-driven or free one's from the forward-dynamics reference)."""
+    motion = planned_motion(mech).motion(np.asarray(times, dtype=float))
     zero = np.zeros(len(motion))
     col = lambda body, q: zero if body == GROUND else motion[f"{body}.{q}"].to_numpy()
     peak = 0.0
@@ -151,7 +152,7 @@ class Reader:
     def readings(self, peak_rate: float) -> list[Reading]:
         out = [r for b in self.mech.bodies for r in self.body(b.name)]
         out += [r for j in self.mech.joints for r in self.joint(j)]
-        return out + self.drive() + self.forces() + self.scene(peak_rate) + self.notes()
+        return out + self.drive() + self.prescribed_motion() + self.torque_laws() + self.forces() + self.scene(peak_rate) + self.notes()
 
     def body(self, name: str) -> list[Reading]:
         h = self.model.bodies[name]
@@ -232,6 +233,39 @@ class Reader:
                      *(Reading(item, q, "stepping loop", law, "note") for q in ("phi0", "omega0", "alpha"))]
         return rows
 
+    def prescribed_motion(self) -> list[Reading]:
+        """Per joint whose motion is integrated from an initial value, the
+        position motors the stepping loop drives on it (none expected)."""
+        motors = {motor.joint.joint.name for motor in self.stepper.motors}
+        return [Reading(joint_item(v.joint), "prescribed motion", "position motor" if v.joint in motors else "none",
+                        "position motors the stepping loop drives on the joint", "set")
+                for v in self.mech.initial_values]
+
+    def torque_laws(self) -> list[Reading]:
+        """Each torque law as the stepping loop will apply it (not in the
+        model: PyBullet keeps no torque beyond a step): the joint of the
+        multibody link it sets under TORQUE_CONTROL, or the joint whose two
+        bodies get equal and opposite external torques; the law's numbers."""
+        rows = []
+        for jt in self.stepper.joint_torques:
+            item, law = torque_law_item(jt.law), jt.law
+            if jt.joint is None:
+                joint = self.mech.joint(law.joint)
+                how = (f"Equal and opposite external torques every step: T on {joint.body_j}, −T on "
+                       f"{joint.body_i} (its joint closes a loop or is already under control).")
+                name = law.joint
+            else:
+                h = jt.joint.handle
+                link = {(tj.handle.uid, tj.handle.link): n for n, tj in self.model.tree_joints.items()}
+                name = link[(h.uid, h.link)]
+                how = (f"TORQUE_CONTROL on link {h.link} of multibody {h.uid} every step, force "
+                       f"{jt.sign:+g}·T(t_n) (its child is {jt.joint.child}).")
+            value = "Not in the model: the stepping loop's law, T(t_n) over the step from t_n."
+            rows += [Reading(item, "joint", name, how, "set"),
+                     *(Reading(item, q, getattr(law, q), value, "set")
+                       for q in ("torque", "amplitude", "frequency", "phase"))]
+        return rows
+
     def forces(self) -> list[Reading]:
         """The spring-dampers and body torques the stepping loop will apply
         (PyBullet has no spring element and keeps no load: they are not in
@@ -266,9 +300,12 @@ class Reader:
                    for key in ("jointLowerLimit", "jointUpperLimit", "jointLimitForce") if key in kw]
         friction = [f"jointFriction {info[7]:g} on link {link} of multibody {uid}" for uid, link, info in joints if info[7]]
         drives = {(m.joint.handle.uid, m.joint.handle.link) for m in self.stepper.motors}
+        laws = {(jt.joint.handle.uid, jt.joint.handle.link) for jt in self.stepper.joint_torques if jt.joint}
         motors = []
         for uid, link, _ in joints:
             if (uid, link) in drives:
+                continue
+            if (uid, link) in laws:     # TORQUE_CONTROL sets the law's torque, nothing else
                 continue
             mode = self.call("setJointMotorControl2", uid, link, "mode", None)
             force = self.call("setJointMotorControl2", uid, link, "force", None)
@@ -301,7 +338,8 @@ class Reader:
             Reading(SCENE, "joint springs", "none", "PyBullet's multibody joints have no springs"),
             Reading(SCENE, "added inertia (armature)", "none", "not a feature of PyBullet"),
             Reading(SCENE, "motors other than the drive", listing(motors),
-                    f"{no_getter}: a velocity motor with force 0 is released (the default one acts as friction)", "set"),
+                    f"{no_getter}: a velocity motor with force 0 is released (the default one acts as friction); "
+                    f"the stepping loop sets motors on the drives' joints only{self.free_joints()}", "set"),
             Reading(SCENE, "velocity damping of bodies", listing(body_damping),
                     f"{no_getter}; PyBullet's default is {DEFAULT_BODY_DAMPING} linear and angular", "set"),
             Reading(SCENE, "fluid forces", "none", "not a feature of PyBullet"),
@@ -315,10 +353,19 @@ class Reader:
                     "The stepping loop damps only the Mechanism's damped joints (joint rows)", "set"),
             Reading(SCENE, "other loads", "not readable",
                     "PyBullet has no getter for loads: they are applied per step; the stepping loop applies the "
-                    "dampers' loads, the spring-dampers, the body torques (force rows) and the drive motors "
-                    "only", "note"),
+                    "dampers' loads, the spring-dampers, the body torques (force rows), the torque laws and the "
+                    "drive motors only", "note"),
             Reading(SCENE, "other constraints", listing(constraints), "multibody joints and user constraints"),
         ]
+
+    def free_joints(self) -> str:
+        """The joints no drive prescribes (those of a free degree of
+        freedom among them), for the motors row."""
+        if not self.mech.forward_dynamics:
+            return ""
+        driven = {d.joint for d in self.mech.drives}
+        free = [j.name for j in self.mech.joints if j.name not in driven]
+        return f"; no motor on the joints no drive prescribes ({', '.join(free)})"
 
     def notes(self) -> list[Reading]:
         c = self.c

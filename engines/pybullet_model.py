@@ -22,6 +22,7 @@ effect is disarmed here (see `disarm_defaults` and `configure_solver`).
 
 from __future__ import annotations
 
+import dataclasses
 from collections import deque
 from dataclasses import dataclass
 
@@ -32,8 +33,10 @@ from .base import Unrepresentable, native_output_silenced
 with native_output_silenced():      # PyBullet prints its build time on import
     import pybullet as p
 
+from mechval.dynamics import raw_dynamics
 from mechval.kinematics import point_motion, point_position, rotate_scalar, separation, slide_axis, slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism
+from mechval.planar_constraints import MechanismError
 
 #: Force/impulse caps meant as "no cap": far above any kN-scale reaction,
 #: far below overflow.
@@ -73,7 +76,8 @@ class LoopConstraint:
 
 @dataclass
 class Model:
-    """A built PyBullet model in its own DIRECT client."""
+    """A built PyBullet model in its own DIRECT client, in the state of
+    `start` (raw motion columns, one row: see `start_state`)."""
 
     client: int
     timestep: float
@@ -82,9 +86,18 @@ class Model:
     tree_joints: dict[str, TreeJoint]
     constraints: dict[str, LoopConstraint]
     coms: dict[str, tuple[float, float]]
+    start: pd.DataFrame
 
 
 Link = tuple[Joint, str, str]   # (joint, parent body, child body)
+
+#: Why layout "tree" refuses a torque-driven or free closed loop (measured:
+#: the free seed four-bar's loop, closed by a point-to-point constraint
+#: between two links of one multibody, opened by 1 m within 0.2 s at a
+#: 1e-4 s step, and at once at 1e-5 s; a drive's motor keeps it closed).
+TREE_LOOP_UNSTABLE = ("layout 'tree' closes the loop inside one multibody, which PyBullet does not keep "
+                      "closed without a drive's motor (the free seed four-bar's loop opened by 1 m within "
+                      "0.2 s); use layout 'split'")
 
 
 def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
@@ -118,6 +131,8 @@ def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
                 raise ValueError(f"pybullet: layout 'tree' would close the loop at the prismatic joint "
                                  f"{joint.name!r} with a point-to-point constraint (a pin, not a slide); "
                                  "use layout 'split'")
+        if mechanism.forward_dynamics and len(links) < len(mechanism.joints):
+            raise Unrepresentable("engines.pybullet.layout", TREE_LOOP_UNSTABLE)
         return {GROUND: links}
     if layout != "split":
         raise ValueError(f"pybullet: unknown layout {layout!r} (known: split, tree)")
@@ -204,18 +219,67 @@ def configure_solver(client: int, timestep: float, gravity: tuple[float, float])
     p.setGravity(gravity[0], gravity[1], 0.0, physicsClientId=client)
 
 
-def build(mechanism: Mechanism, timestep: float, layout: str, t_start: float) -> Model:
-    """Connect a DIRECT client and build the model at the reference state of
-    t_start (poses at t_start; velocities at t_start − dt/2, since the
-    semi-implicit Euler velocity stands for the step's middle)."""
+#: The forward-dynamics reference's tolerance where only a run's peak rates
+#: are needed (`planned_motion`): on every case of tests/dynamic_mechanisms.py
+#: it gives the step rule's Ω of 1e-10 to 4 digits in about half the time
+#: (0.2–3.6 s; a looser 1e-4 misjudged the jerk of the falling four-bar by
+#: 40 %).
+RATE_RTOL = 1e-6
+
+
+def planned_motion(mechanism: Mechanism) -> Mechanism:
+    """The mechanism with its whole run's motion known where only its peak
+    rates are needed (the default step, the audit's speed clamp): a
+    prescribed motion as it is; a torque-driven or free one integrated by
+    the forward-dynamics reference at RATE_RTOL."""
+    if not mechanism.forward_dynamics:
+        return mechanism
+
+    def motion(t: np.ndarray) -> pd.DataFrame:
+        try:
+            return raw_dynamics(mechanism, t, rtol=RATE_RTOL).frame
+        except MechanismError as exc:
+            raise Unrepresentable(exc.key, exc.reason) from None
+
+    return dataclasses.replace(mechanism, motion=motion)
+
+
+def start_state(mechanism: Mechanism, t_start: float, timestep: float) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The reference state a run starts from: (poses at t_start, rates at
+    t_start − dt/2, since the semi-implicit Euler velocity stands for the
+    step's middle), raw motion columns, one row each.
+
+    A prescribed motion: the reference motion (`mechanism.motion`) at both
+    instants. A torque-driven or free one (`Mechanism.forward_dynamics`),
+    which starts at the first instant with no pre-roll: the consistent
+    initial state the forward-dynamics reference integrates from
+    (`raw_dynamics` at t_start, the state every adapter starts from), its
+    rates taken half a step back along its accelerations, v − a·dt/2
+    (O(dt²), like the velocities the engine's steps then carry)."""
+    if not mechanism.forward_dynamics:
+        return mechanism.motion(np.array([t_start])), mechanism.motion(np.array([t_start - timestep / 2]))
+    try:
+        pose = raw_dynamics(mechanism, np.array([t_start])).frame
+    except MechanismError as exc:      # refused by the reference (e.g. an inconsistent initial state)
+        raise Unrepresentable(exc.key, exc.reason) from None
+    rates = pose.copy()
+    for body in mechanism.bodies:
+        for rate, accel in (("vx", "ax"), ("vy", "ay"), ("omega", "alpha")):
+            rates[f"{body.name}.{rate}"] -= timestep / 2 * pose[f"{body.name}.{accel}"]
+    return pose, rates
+
+
+def build(mechanism: Mechanism, timestep: float, layout: str, t_start: float,
+          state: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> Model:
+    """Connect a DIRECT client and build the model in the reference state of
+    t_start (`start_state`), or in `state` (poses, rates) when given."""
     client = p.connect(p.DIRECT)
     try:
         with native_output_silenced():      # "switched solver" notices from C
             configure_solver(client, timestep, mechanism.gravity)
-        pose = mechanism.motion(np.array([t_start]))
-        rates = mechanism.motion(np.array([t_start - timestep / 2]))
+        pose, rates = state if state is not None else start_state(mechanism, t_start, timestep)
         model = Model(client, timestep, BodyHandle(-1, -1), {}, {}, {},
-                      {b.name: b.com for b in mechanism.bodies})
+                      {b.name: b.com for b in mechanism.bodies}, pose)
         for root, links in plan_layout(mechanism, layout).items():
             _build_multibody(mechanism, model, root, links, pose, rates)
         _build_constraints(mechanism, model)

@@ -6,6 +6,7 @@ and the model audit (`pybullet_audit`) both build on this module.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -15,16 +16,25 @@ import numpy as np
 import pandas as pd
 
 from mechval.kinematics import joint_gaps, rigid_velocity, rotate_scalar, slide_motion
-from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyTorque, Drive, Mechanism, SpringDamper
+from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyTorque, Drive, Mechanism, SpringDamper, TorqueLaw
 
-from .base import RawRun, RunInfo
-from .pybullet_model import NO_CAP, Model, TreeJoint, build, p   # p: pybullet, imported quietly there
+from .base import RawRun, RunInfo, Unrepresentable
+from .pybullet_model import NO_CAP, Model, TreeJoint, build, p, start_state   # p: pybullet, imported quietly there
 from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_slides, slide_reaction
 
 #: A body's reading: origin x, y (m), wrapped angle (rad), origin vx, vy
 #: (m/s), ω (rad/s), world axes. The ground is always at rest.
 BodyState = tuple[float, float, float, float, float, float]
 AT_REST: BodyState = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+PREROLL = "preroll_steps"
+#: The largest rate (rad/s, m/s) of `steady_start`'s probe: small enough
+#: that the engine's velocity-product terms (∝ rate²·dt) are negligible.
+PROBE_RATE = 1e-3
+#: Why a torque-driven or free run refuses a pre-roll, and what it does instead.
+FREE_PREROLL = ("a torque-driven or free run starts at the first instant from the reference's consistent "
+                "initial state: there is no prescribed motion to pre-roll along (set 0)")
+FREE_START = ("forward dynamics: poses at the first instant from the reference's consistent initial state, "
+              "velocities half a step back along its accelerations; no pre-roll")
 
 
 def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any],
@@ -33,23 +43,33 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     disconnected). `prepare(model)` runs on the built model before stepping:
     tests use it to re-arm one PyBullet default and show its effect."""
     dt, per_sample, preroll = step_plan(times, settings)
+    if preroll and mechanism.forward_dynamics:
+        raise Unrepresentable(f"engines.pybullet.{PREROLL}", FREE_PREROLL)
     started = time.perf_counter()
-    model = build(mechanism, dt, settings["layout"], float(times[0]) - preroll * dt)
+    t_start = float(times[0]) - preroll * dt
+    state = steady_start(mechanism, dt, settings["layout"], t_start) if mechanism.forward_dynamics else None
+    model = build(mechanism, dt, settings["layout"], t_start, state)
     try:
         if prepare:
             prepare(model)
         built = time.perf_counter()
-        frame, steps = Stepper(mechanism, model, times, per_sample, preroll).run()
+        stepper = Stepper(mechanism, model, times, per_sample, preroll)
+        frame, steps = stepper.run()
         wall = time.perf_counter() - built
     finally:
         p.disconnect(model.client)
     info = {
         "timestep_used": dt, "steps": steps,
         "closure_gap_max": float(joint_gaps(mechanism, frame).max()),
-        "drive_error_max": max(float(np.abs(drive_coordinate(mechanism, d, frame) - d.law.angle(times)).max())
-                               for d in mechanism.drives),
         "build_time_s": built - started, "wall_time_s": wall,
     }
+    if mechanism.drives:
+        info["drive_error_max"] = max(
+            float(np.abs(drive_coordinate(mechanism, d, frame) - d.law.angle(times)).max()) for d in mechanism.drives)
+    if mechanism.forward_dynamics:
+        info["start"] = FREE_START
+    if stepper.joint_torques:
+        info["torque_laws"] = "; ".join(t.describe() for t in stepper.joint_torques)
     missing = {}
     slides = derived_slides(mechanism)
     for name, tree_joint in model.tree_joints.items():
@@ -62,6 +82,60 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     if slides and preroll == 0:
         missing.update({f"{j.name}.{q}": NO_EARLIER_STEP for j in slides for q in ("Fx", "Fy", "M")})
     return RawRun(frame, missing, RunInfo.of(info))
+
+
+def steady_start(mechanism: Mechanism, dt: float, layout: str, t0: float) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The reference's initial state (`start_state`) with the mid-step
+    rates PyBullet's step carries there, so that its first step's
+    constraint forces are not a start-up transient.
+
+    Why: PyBullet makes each step's new velocity v_n+½ satisfy the
+    constraints at the step's start (J(q_n)·v_n+½ = −C(q_n)/dt, erp 1),
+    so its closed loops ride with a steady gap C ≈ ½·dt²·J̇·v. Built on the
+    exact pose (C = 0) with v(t0 − dt/2), the first step misses half the
+    J̇·v term of the loop forces, an error that does not shrink with dt
+    (measured: the motored slider-crank's B.Fy 0.30 N of its 43.8 N peak
+    at t0 at any step, 1e-4 N after; 9e-3 N with these rates). The rates
+    that give the first step the steady state's forces: v0 − dt/2·a0 −
+    dt/2·Pn·a0, with Pn·a0 the part of the initial accelerations along
+    the constraint forces (the kinetic-energy projection, which the
+    engine's own solver does): PyBullet finds it in a throw-away copy of
+    the model started at rates ε·a0 with no loads, whose step keeps the
+    tangential part Pt·(ε·a0) (drives held at ε·φ̈). Not explained: two
+    free bases pinned to each other (the five-bars) keep a transient in
+    their first two steps (docs/engines.md).
+    """
+    pose, rates = start_state(mechanism, t0, dt)
+    accel = {b.name: tuple(float(pose[f"{b.name}.{q}"].iloc[0]) for q in ("ax", "ay", "alpha"))
+             for b in mechanism.bodies}
+    size = max(max(abs(a) for a in values) for values in accel.values())
+    if size == 0.0:
+        return pose, rates
+    eps = PROBE_RATE / size
+    probe = pose.copy()
+    for body, values in accel.items():
+        for q, a in zip(("vx", "vy", "omega"), values):
+            probe[f"{body}.{q}"] = eps * a
+    quiet = dataclasses.replace(mechanism, gravity=(0.0, 0.0))
+    model = build(quiet, dt, layout, t0, (pose, probe))
+    try:
+        stepper = Stepper(quiet, model, np.array([t0]), 1, 0)
+        if not model.constraints and not stepper.motors:
+            return pose, rates
+        for motor in stepper.motors:
+            h = motor.joint.handle
+            q = p.getJointState(h.uid, h.link, physicsClientId=model.client)[0]
+            p.setJointMotorControl2(h.uid, h.link, p.POSITION_CONTROL, targetPosition=q,
+                                    targetVelocity=motor.sign * eps * motor.drive.law.alpha, positionGain=1.0,
+                                    velocityGain=1.0, force=NO_CAP, physicsClientId=model.client)
+        p.stepSimulation(physicsClientId=model.client)
+        kept = stepper.read_bodies()
+    finally:
+        p.disconnect(model.client)
+    for body, values in accel.items():
+        for k, (q, a) in enumerate(zip(("vx", "vy", "omega"), values)):
+            rates[f"{body}.{q}"] -= dt / 2 * (a - kept[body][3 + k] / eps)
+    return pose, rates
 
 
 def drive_coordinate(mechanism: Mechanism, drive: Drive, frame: pd.DataFrame) -> np.ndarray:
@@ -94,9 +168,31 @@ class Motor:
     column: str
 
 
+@dataclass(frozen=True)
+class JointTorque:
+    """One torque law as PyBullet applies it: under TORQUE_CONTROL on the
+    multibody joint of its joint (`joint`; `sign` as a Motor's), or, where
+    its joint closes a loop as a user constraint or is already under
+    control (a drive's motor, another law), as equal and opposite
+    external torques, T on body_j and −T on body_i (`joint` None)."""
+
+    law: TorqueLaw
+    joint: TreeJoint | None
+    sign: float
+
+    @property
+    def column(self) -> str:
+        return f"{self.law.name}.T"
+
+    def describe(self) -> str:
+        how = ("TORQUE_CONTROL on its multibody joint, read back from the joint's sensor (z moment)"
+               if self.joint else "equal and opposite external torques on its two bodies, as applied")
+        return f"{self.law.name} at {self.law.joint}: {how}"
+
+
 class Stepper:
-    """The stepping loop of one run: drive targets, dampers, spring-dampers,
-    body torques, readings.
+    """The stepping loop of one run: drive targets, torque laws, dampers,
+    spring-dampers, body torques, readings.
 
     PyBullet has no spring element between bodies and keeps no load from
     one step to the next, so the Mechanism's dampers, spring-dampers and
@@ -114,7 +210,16 @@ class Stepper:
             tree_joint = model.tree_joints[joint.name]
             self.motors.append(Motor(d, tree_joint, 1.0 if tree_joint.child == joint.body_j else -1.0,
                                      d.effort_column(joint.kind)))
-        self.drive = self.motors[0].joint
+        self.joint_torques: list[JointTorque] = []
+        controlled = {m.joint.joint.name for m in self.motors}
+        for law in mechanism.torque_drives:
+            joint = mechanism.joint(law.joint)
+            tree_joint = model.tree_joints.get(joint.name) if joint.name not in controlled else None
+            controlled.add(joint.name)
+            self.joint_torques.append(JointTorque(
+                law, tree_joint, 1.0 if tree_joint is None or tree_joint.child == joint.body_j else -1.0))
+        #: The external torque-law values applied in the current step.
+        self.applied: dict[str, float] = {}
         self.damped = mechanism.damped_joints
         self.springs = tuple(f for f in mechanism.forces if isinstance(f, SpringDamper))
         self.torques = tuple(f for f in mechanism.forces if isinstance(f, BodyTorque))
@@ -133,6 +238,10 @@ class Stepper:
         # Lands each drive joint exactly on φ(t_n+1) (motor PD with unit gains).
         targets = [(m, m.sign * (m.drive.law.angle(t_next) - self.dt * m.drive.law.rate(t_next)),
                     m.sign * m.drive.law.rate(t_next)) for m in self.motors]
+        # Each law's torque over the step from t_n is T(t_n), as every
+        # other load of the step (semi-implicit Euler takes the forces at
+        # the step's start).
+        laws = [(jt, jt.law.value(t_next - self.dt)) for jt in self.joint_torques]
         before, after, reactions, earlier, loads = [], [], [], [], []
         previous_rates = state = None
         every_step = bool(self.damped or self.springs)
@@ -155,6 +264,8 @@ class Stepper:
                 self.apply_torques()
             if sampled:
                 loads.append(self.loads)
+            for jt, torque in laws:
+                self.apply_torque_law(jt, float(torque[n]))
             for motor, target_pos, target_vel in targets:
                 h = motor.joint.handle
                 p.setJointMotorControl2(h.uid, h.link, p.POSITION_CONTROL, targetPosition=target_pos[n],
@@ -277,6 +388,22 @@ class Stepper:
                 if body != GROUND:
                     self.push(body, (sign * tension * ex, sign * tension * ey), point)
 
+    def apply_torque_law(self, jt: JointTorque, torque: float) -> None:
+        """A torque law's T for the coming step. PyBullet keeps neither a
+        TORQUE_CONTROL torque nor an external load beyond one step (measured),
+        so it is set before every step. Not in `loads`: the derived slide
+        reactions count a torque law by its column, as a drive's effort."""
+        if jt.joint is not None:
+            h = jt.joint.handle
+            p.setJointMotorControl2(h.uid, h.link, p.TORQUE_CONTROL, force=jt.sign * torque, physicsClientId=self.c)
+            return
+        self.applied[jt.column] = torque
+        joint = self.mech.joint(jt.law.joint)
+        for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
+            if body != GROUND:
+                h = self.model.bodies[body]
+                p.applyExternalTorque(h.uid, h.link, (0.0, 0.0, sign * torque), p.WORLD_FRAME, physicsClientId=self.c)
+
     def apply_torques(self) -> None:
         """Every constant body torque, for the coming step."""
         for torque in self.torques:
@@ -300,6 +427,14 @@ class Stepper:
         for motor in self.motors:
             h = motor.joint.handle
             out[motor.column] = motor.sign * p.getJointState(h.uid, h.link, physicsClientId=self.c)[3]
+        for jt in self.joint_torques:
+            if jt.joint is None:
+                out[jt.column] = self.applied[jt.column]
+                continue
+            # Under TORQUE_CONTROL getJointState's applied torque reads 0;
+            # the sensor's z moment at the joint point is the joint torque.
+            h = jt.joint.handle
+            out[jt.column] = jt.sign * p.getJointState(h.uid, h.link, physicsClientId=self.c)[2][5]
         return out
 
     def slide_reactions(self, frame: pd.DataFrame, earlier: list, before: list, after: list,
@@ -319,7 +454,7 @@ class Stepper:
         """Raw columns at the samples (see the module docstring for stamps)."""
         columns: dict[str, np.ndarray] = {"t": self.times}
         t_start = self.times[0] - self.preroll * self.dt
-        start = self.mech.motion(np.array([t_start]))
+        start = self.model.start
         for body in self.mech.bodies:
             b = body.name
             pre = np.array([s[b] for s in before])

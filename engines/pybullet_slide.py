@@ -15,12 +15,12 @@ PyBullet's own simulation implies (Newton–Euler on body j = J's body_j):
 
 P is J's point on body j (the couple is taken there, as everywhere); the
 sums run over body j's other joints k, with the forces F_k→j at their points
-P_k and the couples M_k→j (another slide's couple, a drive torque) exactly
-as PyBullet reports them (constraint forces and leaf sensors), a slide
-drive's force along its axis (J's own too: F_J is the slide's reaction
-alone, as in the reference, the drive force F being its own column); F_ext
-and M_ext(P) are the loads the adapter applied in the step (dampers,
-spring-dampers, body torques).
+P_k and the couples M_k→j (another slide's couple, a drive torque, a
+torque law's T) exactly as PyBullet reports them (constraint forces and
+leaf sensors), a slide drive's force along its axis (J's own too: F_J is
+the slide's reaction alone, as in the reference, the drive force F being
+its own column); F_ext and M_ext(P) are the loads the adapter applied in
+the step (dampers, spring-dampers, body torques).
 
 Time stamps (docs/engines.md): the forces read after the step from t_n to
 t_n+1 belong to t_n, and so does this balance. PyBullet's semi-implicit
@@ -49,7 +49,8 @@ DERIVED_NOTE = ("{joint}: F and M derived from the balance of {body} with PyBull
 #: The reason for the first sample's missing value when there is no step
 #: before it.
 NO_EARLIER_STEP = ("derived from the body's balance, which needs the position one step before the "
-                   "sample; preroll_steps = 0 gives none at the first sample")
+                   "sample; with no pre-roll (preroll_steps = 0, or a torque-driven or free run) the first "
+                   "sample has none")
 
 
 def derived_slides(mechanism: Mechanism) -> tuple[Joint, ...]:
@@ -97,7 +98,8 @@ def slide_reaction(mechanism: Mechanism, joint: Joint, track: BodyTrack, reactio
     net = body.mass * (accel - np.asarray(mechanism.gravity))
     force = net.copy()
     moment = body.izz * alpha + _cross(com(at) - P, net)
-    efforts = {d.joint: d.effort_column(mechanism.joint(d.joint).kind) for d in mechanism.drives}
+    efforts = [(d.joint, d.effort_column(mechanism.joint(d.joint).kind)) for d in mechanism.drives]
+    efforts += [(law.joint, f"{law.name}.T") for law in mechanism.torque_drives]
     for other in mechanism.joints:
         if body.name not in (other.body_i, other.body_j):
             continue
@@ -110,18 +112,17 @@ def slide_reaction(mechanism: Mechanism, joint: Joint, track: BodyTrack, reactio
             moment -= _cross(_points(at, point) - P, f)
             if other.kind == "prismatic":
                 moment -= sign * _column(reactions, f"{other.name}.M")
-        if other.name not in efforts:
-            continue
-        effort = sign * _column(reactions, efforts[other.name])
-        if other.kind == "revolute":
-            moment -= effort
-            continue
-        # A slide's drive force along its axis u (turning with body_i, whose
-        # angle is θj − the held angle), at its point on this body.
-        theta_i = at[:, 2] - (other.held_angle if sign > 0 else 0.0)
-        f = effort[:, None] * np.column_stack(rotate(theta_i, other.axis))
-        force -= f
-        moment -= _cross(_points(at, point) - P, f)
+        for column in (column for name, column in efforts if name == other.name):
+            effort = sign * _column(reactions, column)
+            if other.kind == "revolute":
+                moment -= effort
+                continue
+            # A slide's drive force along its axis u (turning with body_i,
+            # whose angle is θj − the held angle), at its point on this body.
+            theta_i = at[:, 2] - (other.held_angle if sign > 0 else 0.0)
+            f = effort[:, None] * np.column_stack(rotate(theta_i, other.axis))
+            force -= f
+            moment -= _cross(_points(at, point) - P, f)
     force -= loads[:, :2]
     moment -= loads[:, 2] - _cross(P, loads[:, :2])
     return {f"{joint.name}.Fx": force[:, 0], f"{joint.name}.Fy": force[:, 1], f"{joint.name}.M": moment}

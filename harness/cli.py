@@ -249,7 +249,7 @@ def cmd_run(args) -> int:
         sections.append(cost_section(table, orders, cheap))
         files = {"cost.csv": lambda path: write_table(table, path)}
     write_report(out, scenarios, references, outcomes, records, sections, files if args.cost else None)
-    print(summary_markdown(records, scenarios, provenance()))
+    print(summary_markdown(records, scenarios, provenance(), references))
     print(f"report: {out / 'index.html'}")
     return 0 if passed(records) else 1
 

@@ -25,8 +25,9 @@ def simulate(scenario: Scenario, engine: EngineAdapter | str,
     mechanism = build_mechanism(scenario)
     for feature, key in mechanism_features(mechanism).items():
         if feature not in engine_adapter.features:
-            raise ScenarioError(scenario.source, key, f"{engine_adapter.name}: its adapter does not build "
-                                                      f"{feature} yet")
+            why = engine_adapter.feature_limits.get(feature)
+            raise ScenarioError(scenario.source, key, f"{engine_adapter.name}: " + (
+                f"cannot run {feature}: {why}" if why else f"its adapter does not build {feature} yet"))
     settings = engine_adapter.settings_for(scenario, mechanism, overrides)
     try:
         raw = engine_adapter.run(mechanism, scenario.time.t, settings)

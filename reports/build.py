@@ -19,7 +19,7 @@ import pandas as pd
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 import mechval
-from mechval.compare import HEALTH_BOUNDS
+from mechval.compare import GROWTH_COLUMNS, HEALTH_BOUNDS
 from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome
 from mechval.scenario import Scenario, one_line
@@ -29,7 +29,7 @@ from . import plots
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 RECORD_COLUMNS = ["engine", "setting", "signal", "max_error", "t_max", "rms_error", "relative_error", "bound",
-                  "ratio", "verdict", "missing", "reason"]
+                  "ratio", "verdict", "missing", "reason", *GROWTH_COLUMNS]
 TEXT_COLUMNS = {"engine", "setting", "signal", "verdict", "reason"}
 #: Record verdicts the page filters by (mechval.compare).
 VERDICTS = ("fail", "pass", "missing")
@@ -132,7 +132,19 @@ def md_cell(value) -> str:
     return one_line(_fmt(value)).replace("|", "\\|")
 
 
-def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta: dict) -> str:
+def reference_method(reference: Signals) -> str:
+    """How the reference was computed, from its run facts: the method and,
+    for an integrated (forward-dynamics) run, the integrator, its
+    tolerance, steps and largest constraint residual."""
+    facts = reference.info.facts
+    if "integrator" not in facts:
+        return str(facts.get("method", ""))
+    return (f"{facts.get('method', '')}; {facts['integrator']}, rtol {facts['rtol']:g}, {facts.get('steps')} steps, "
+            f"constraint residual ≤ {facts.get('constraint_drift_max', float('nan')):.2g} (scaled)")
+
+
+def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta: dict,
+                     references: Mapping[str, Signals] | None = None) -> str:
     matrix = summary_matrix(records, scenarios)
     lines = [f"# mechval discrepancy summary ({meta['date']}, commit {meta['commit']})", "",
              "Worst ratio error / bound per scenario × engine (≤ 1 passes).", "",
@@ -143,12 +155,18 @@ def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta:
         lines.append(f"| {md_cell(row['scenario'])} | " + " | ".join(cells) + " |")
     failures = records[records["verdict"] == "fail"]
     if not failures.empty:
-        lines += ["", "## Out of tolerance", "", "| scenario | engine | setting | signal | max error | ratio | reason |",
-                  "|---|---|---|---|---|---|---|"]
+        lines += ["", "## Out of tolerance", "",
+                  "| scenario | engine | setting | signal | max error | ratio | first ¼ | last ¼ | growth | reason |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
         for _, r in failures.iterrows():
             lines.append(f"| {md_cell(r['scenario'])} | {md_cell(r['engine'])} | {md_cell(r['setting'])} | "
                          f"{md_cell(r['signal'])} | {_fmt(r['max_error'])} | {_fmt(r['ratio'])} | "
-                         f"{md_cell(r['reason'] or '')} |")
+                         + " | ".join(_fmt(r.get(c)) for c in GROWTH_COLUMNS) + f" | {md_cell(r['reason'] or '')} |")
+    integrated = {s.name: reference_method(references[s.name]) for s in scenarios
+                  if references and s.name in references and "integrator" in references[s.name].info.facts}
+    if integrated:
+        lines += ["", "## Reference integration (forward dynamics)", ""]
+        lines += [f"- {md_cell(name)}: {md_cell(method)}" for name, method in integrated.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -207,6 +225,8 @@ def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Out
         verdict=_verdict(mine),
         drawing=plots.mechanism_figure(build_mechanism(scenario), scenario.time.end),
         signals=plots.signal_data(reference, results, bounds, palette),
+        energy=plots.energy_data(reference, results, palette),
+        reference_method=reference_method(reference),
         runs=_run_groups(scenario, mine),
     )
 
@@ -244,7 +264,7 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
             scripts=plots.page_scripts())
         (folder / "index.html").write_text(html, encoding="utf-8")
         records.to_csv(folder / "discrepancies.csv", index=False, float_format="%.17g")
-        (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta), encoding="utf-8")
+        (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta, references), encoding="utf-8")
         for name, write in (extra_files or {}).items():
             write(folder / name)
 

@@ -28,7 +28,7 @@ import numpy as np
 from markupsafe import Markup
 
 from mechval.kinematics import point_position, rotate
-from mechval.mechanism import GROUND, Mechanism
+from mechval.mechanism import GROUND, Mechanism, SpringDamper
 from mechval.signals import SIGNAL_CLASS, Signals
 
 UNITS = {"angle": "rad", "position": "m", "velocity": "rad/s | m/s", "acceleration": "rad/s² | m/s²",
@@ -217,10 +217,46 @@ def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapp
             "stream": stream.encoded()}
 
 
+#: The health measures the energy figure draws, whichever a run has
+#: (mechval.health: a conservative scene's drift, else the balance residual).
+ENERGY_MEASURES = ("energy_drift", "energy_balance")
+
+
+def energy_data(reference: Signals, results: Mapping[str, Signals], palette: Mapping[str, str]) -> dict | None:
+    """One scenario's energy against time for the page (data-kind "energy"):
+    per run, the reference's first, its energy E = kinetic + potential (J)
+    and its energy drift or balance residual (relative) from its health,
+    as entries of one code stream like `signal_data`; None when no run's
+    health has the energy series."""
+    runs = {"reference": (reference, "black"), **{label: (result, palette.get(label, PALETTE[0]))
+                                                  for label, result in results.items()}}
+    stream = _Stream()
+    drawn, measure = [], ""
+    for label, (result, colour) in runs.items():
+        health = result.health
+        if health is None or "energy" not in health:
+            continue
+        name = next(m for m in ENERGY_MEASURES if m in health)
+        measure = measure or name
+        energy, residual = health["energy"].to_numpy(dtype=float), health[name].to_numpy(dtype=float)
+        keep = _thinned(len(energy), energy, residual)
+        entry = {"label": label, "colour": colour, "t": [float(health["t"].iloc[0]), float(health["t"].iloc[-1]),
+                                                         len(energy)]}
+        if keep is not None:
+            energy, residual = energy[keep], residual[keep]
+            entry["samples"] = stream.samples(keep)
+        entry.update(energy=stream.linear(energy), residual=stream.log(residual))
+        drawn.append(entry)
+    if not drawn:
+        return None
+    return {"measure": measure, "runs": drawn, "stream": stream.encoded()}
+
+
 def mechanism_figure(mech: Mechanism, t_end: float, instants: int = 4) -> dict:
     """The linkage to scale at a few instants (a Plotly figure): every body
-    as the polygon of its joint points, ground pivots as triangles, guides
-    as dashed lines."""
+    as the polygon of its joint points (closed for a ternary or larger
+    link), ground pivots as triangles, guides as dashed lines, springs as
+    dotted lines."""
     t = np.linspace(0.0, t_end, instants)
     motion = mech.motion(t)
     traces = []
@@ -241,11 +277,20 @@ def mechanism_figure(mech: Mechanism, t_end: float, instants: int = 4) -> dict:
         for body in mech.bodies:
             points = [point_position(motion, body.name, j.point_j if j.body_j == body.name else j.point_i)
                       for j in mech.joints if body.name in (j.body_i, j.body_j)]
+            if len({(float(p["x"][k]), float(p["y"][k])) for p in points}) >= 3:
+                points.append(points[0])
             traces.append(dict(x=[float(p["x"][k]) for p in points], y=[float(p["y"][k]) for p in points],
                                mode="lines+markers", name=name, legendgroup=name,
                                showlegend=body is mech.bodies[0], text=[body.name] * len(points),
                                line=dict(color=shades[k % len(shades)], width=4 if k == 0 else 2),
                                marker=dict(size=6), hovertemplate="%{text}: (%{x:.4g}, %{y:.4g}) m"))
+        for spring in (f for f in mech.forces if isinstance(f, SpringDamper)):
+            ends = [point_position(motion, spring.body_a, spring.point_a),
+                    point_position(motion, spring.body_b, spring.point_b)]
+            traces.append(dict(x=[float(p["x"][k]) for p in ends], y=[float(p["y"][k]) for p in ends],
+                               mode="lines", legendgroup=name, showlegend=False, text=[spring.name] * 2,
+                               line=dict(color=shades[k % len(shades)], width=1, dash="dot"),
+                               hovertemplate="%{text}: (%{x:.4g}, %{y:.4g}) m"))
     layout = dict(height=360, margin=dict(l=60, r=20, t=20, b=50), xaxis=dict(title=dict(text="x [m]")),
                   yaxis=dict(title=dict(text="y [m]"), scaleanchor="x", scaleratio=1),
                   legend=dict(font=dict(size=10)))

@@ -99,6 +99,10 @@ class AdapterContract:
     #: Why the adapter builds no engine model to audit ("" when `audit` reads
     #: its model back): the audit test skips with this reason.
     without_model_audit: ClassVar[str] = ""
+    #: Why the adapter runs no torque-driven or free mechanism ("" when it
+    #: declares the features "torque laws" and "free motion"): the tests of
+    #: forward dynamics skip with this reason.
+    without_forward_dynamics: ClassVar[str] = ""
 
     @pytest.fixture
     def adapter(self):
@@ -271,6 +275,12 @@ class AdapterContract:
     # -- torque-driven and free motion -------------------------------------------
 
     def run_dynamic(self, adapter, name: str):
+        """Skip with the stated reason if the adapter builds no forward
+        dynamics (and check that it indeed declares neither feature)."""
+        if self.without_forward_dynamics:
+            assert not {"torque laws", "free motion"} & adapter.features, adapter.features
+            pytest.skip(self.without_forward_dynamics)
+        assert {"torque laws", "free motion"} <= adapter.features
         mech, times = dynamic_mechanism(name)
         raw = adapter.run(mech, times, adapter.default_settings(mech, times))
         return mech, times, raw.frame
@@ -287,6 +297,22 @@ class AdapterContract:
         reference = raw_dynamics(mech, times).frame
         ratios = dynamic_errors(mech, reference, frame)
         assert {column: ratio for column, ratio in ratios.items() if not ratio <= 1.0} == {}
+
+    @pytest.mark.parametrize("name", ["free-fourbar", "motored-slider-crank"])
+    def test_the_dynamic_model_holds_only_the_scene(self, adapter, name):
+        """The compiled-model audit of a free and a motored mechanism: each
+        torque law as stated, nothing prescribing a joint that is
+        integrated from its initial value, no other effect."""
+        mech, times = dynamic_mechanism(name)
+        if self.without_forward_dynamics:
+            pytest.skip(self.without_forward_dynamics)
+        if self.without_model_audit:
+            pytest.skip(self.without_model_audit)
+        table = adapter.audit(mech, times, adapter.default_settings(mech, times))
+        assert failures(table).empty, "\n" + format_audit(failures(table))
+        assert {"prescribed motion"} <= set(table["quantity"])
+        if mech.torque_drives:
+            assert any(item.startswith("torque law") for item in table["item"])
 
     def test_a_torque_law_is_an_applied_joint_torque(self, adapter):
         """The crank under T(t) = T0 + a·sin(2πft + φ) (tests/dynamic_mechanisms.py

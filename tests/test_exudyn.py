@@ -1,20 +1,29 @@
 """Exudyn adapter: the built model holds only the scene's effects, each
 setting that spoils forces while the kinematics look perfect shows its
 effect (or is proven in effect), signs, the index-3 variant, a user-style
-150 rad/s damped scene and the documented high-accuracy setting."""
+150 rad/s damped scene and the documented high-accuracy setting; torque
+laws and free motion beyond the contract (a half-driven five-bar, Andrews'
+squeezer under its motor, the audit of torque laws and free joints)."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from contract import AdapterContract
+import andrews as A
+import dynamic_mechanisms as dm
+from contract import ANGLE, AdapterContract, dynamic_errors
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
+from mechval.audit import audit, expected_model, failures, torque_law_item
 from mechval.compare import compare, format_records, passed
 from mechval.drive import DriveLaw
+from mechval.dynamics import raw_dynamics
 from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, Joint, Mechanism
+from mechval.adapter import Unrepresentable
+from mechval.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, InitialValue, Joint, Mechanism
 from mechval.reference import raw_reference, simulate_reference
 from mechval.scenarios import parse
 from scenario_data import fourbar, slider_crank
@@ -29,7 +38,9 @@ except ImportError as exc:
     pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"exudyn cannot be imported ({exc})")]
 else:
     pytestmark = pytest.mark.engine     # every test here runs Exudyn
+    from mechval.engines.exudyn_audit import Reader
     from mechval.engines.exudyn_model import build_model, simulation_settings, solve
+    from mechval.engines.exudyn_run import prepare
 
 #: fourbar-seed at the default setting: every signal within this fraction
 #: of its peak (measured 1.7e-5 at the derived step 7.7e-4 s).
@@ -298,3 +309,140 @@ def test_prismatic_joint_between_moving_bodies(adapter, damping):
 
 class TestContract(AdapterContract):
     engine = "exudyn"
+
+
+# --- torque-driven and free motion (beyond tests/contract.py) -----------------
+
+def dynamic_case(name: str, end: float, samples: int = 101):
+    """A case of tests/dynamic_mechanisms.py with its assembly pose, and its
+    output instants from 0 to `end`."""
+    case = dm.CASES[name]()
+    return dataclasses.replace(case.mech, assembly_pose=case.pose), np.linspace(0.0, end, samples)
+
+
+def test_a_half_driven_five_bar_keeps_its_drive_and_integrates_the_rest(adapter):
+    """Its first crank stays prescribed (one coordinate constraint, tracked
+    to rounding), the second is free: every column within the default
+    bounds of the forward-dynamics reference (measured ≤ 0.011 of them)."""
+    mech, times = dynamic_case("half-driven-five-bar", 1.0)
+    raw = adapter.run(mech, times, adapter.default_settings(mech, times))
+    ratios = dynamic_errors(mech, raw_dynamics(mech, times).frame, raw.frame)
+    assert {column: ratio for column, ratio in ratios.items() if not ratio <= 1.0} == {}
+    assert raw.info.facts["drive_error_max"] < 1e-12
+
+
+@pytest.fixture(scope="module")
+def andrews_run(adapter):
+    mech, times = dynamic_case("motored-andrews", A.T1)
+    return mech, times, adapter.run(mech, times, adapter.default_settings(mech, times)).frame
+
+
+def test_andrews_squeezer_under_its_motor_follows_the_reference(andrews_run):
+    """Andrews' squeezer, 0 ≤ t ≤ 0.03 s from the Test Set's initial state:
+    every column within the default bounds of the forward-dynamics
+    reference (measured ≤ 0.016 of them, K1.theta)."""
+    mech, times, frame = andrews_run
+    ratios = dynamic_errors(mech, raw_dynamics(mech, times).frame, frame)
+    assert {column: ratio for column, ratio in ratios.items() if not ratio <= 1.0} == {}
+
+
+def test_andrews_squeezer_under_its_motor_meets_the_published_solution(andrews_run):
+    """The seven coordinates at t = 0.03 s against the Test Set's published
+    solution (tests/andrews.py, PSIDE at 1e-14), within the default angle
+    tolerance (rad; measured 1.6e-5 on β, the crank that turns 15.9 rad)."""
+    _, _, frame = andrews_run
+    q = A.test_set_coordinates(frame.iloc[[-1]])[:, 0]
+    assert float(np.max(np.abs(q - A.Q1))) <= ANGLE
+
+
+def test_a_torque_law_is_two_opposite_loads_and_a_free_joint_no_constraint():
+    """The model of the motored slider-crank: no coordinate constraint (the
+    crank is free), the motor two LoadTorqueVectors on the crank (+T) and
+    nothing on the ground, evaluated at the solver's time."""
+    mech, times = dynamic_case("motored-slider-crank", 1.0)
+    mbs = build_model(mech, 0.0).mbs
+    assert "ConnectorCoordinate" not in item_types(mbs)
+    loads = [mbs.GetLoad(i) for i in range(mbs.systemData.NumberOfLoads())]
+    motor = [load for load in loads if load["name"] == torque_law_item(mech.torque_drives[0])]
+    assert [load["loadType"] for load in motor] == ["TorqueVector"]     # O2 joins the crank to the ground
+    law = mech.torque_drives[0]
+    function = motor[0]["loadVectorUserFunction"]["function"]
+    assert [function(mbs, t, 0)[2] for t in times] == pytest.approx(law.value(times), rel=1e-15, abs=1e-15)
+
+
+def test_the_audit_reads_back_the_torque_law_and_the_free_joint(adapter):
+    """The model of one mechanism read as another: a changed amplitude is
+    the one torque-law row that differs, and the half-driven five-bar's
+    drive, read as the free five-bar, is the prescribed motion of a joint
+    that should have none (and a motor, a constraint, the scene does not
+    ask for)."""
+    mech, times = dynamic_case("motored-slider-crank", 1.0)
+    settings = adapter.default_settings(mech, times)
+    model, _, t0 = prepare(mech, times, settings)
+    readings = Reader(mech, model, model.start, t0, times).readings()
+    assert failures(audit(expected_model(mech), readings)).empty
+    louder = dataclasses.replace(mech.torque_drives[0], amplitude=0.6)
+    table = audit(expected_model(dataclasses.replace(mech, torque_drives=(louder,))), readings)
+    assert failures(table)[["item", "quantity"]].values.tolist() == [["torque law motor", "amplitude"]]
+
+    half, times = dynamic_case("half-driven-five-bar", 1.0)
+    model, _, t0 = prepare(half, times, adapter.default_settings(half, times))
+    free = dynamic_case("free-five-bar", 1.0)[0]
+    different = failures(audit(expected_model(free), Reader(free, model, model.start, t0, times).readings()))
+    assert different[["item", "quantity"]].values.tolist() == [["joint O1", "prescribed motion"],
+                                                                ["scene", "motors other than the drive"],
+                                                                ["scene", "other constraints"]]
+    assert "ConnectorCoordinate" in different["actual"].iloc[0]
+
+
+def test_without_its_own_initial_solve_the_first_reactions_are_missing(adapter):
+    """A run with no pre-roll and Exudyn's initial-acceleration solve off:
+    Exudyn reports zero reactions at the first instant, so they are missing
+    with the reason (the torque law's column is known there); a pre-roll is
+    refused, as there is no motion before the first instant."""
+    mech, times = dynamic_case("spinning-crank", 0.2, 21)
+    settings = adapter.default_settings(mech, times)
+    assert settings["compute_initial_accelerations"] and settings["pre_roll_steps"] == 0
+    raw = adapter.run(mech, times, {**settings, "compute_initial_accelerations": False})
+    assert np.isnan(raw.frame["O.Fx"][0]) and np.isfinite(raw.frame["O.Fx"][1:]).all()
+    assert "zero reactions" in raw.missing["O.Fx"] and "drive.T" not in raw.missing
+    with pytest.raises(ValueError, match="pre_roll_steps must be 0"):
+        adapter.run(mech, times, {**settings, "pre_roll_steps": 1})
+
+
+def test_a_torque_law_is_applied_at_the_step_s_own_time(adapter):
+    """The crank under its torque law against the closed form: halving the
+    step quarters the error (measured 2.93e-5 → 7.32e-6 rad, ratio 4.0), as
+    the second-order solver gives when the load is evaluated at the time of
+    the step it acts in; a torque lagging by a step would be first order
+    (ratio 2)."""
+    mech, times = dynamic_case("spinning-crank", 1.0)
+    settings = adapter.default_settings(mech, times)
+    theta, _ = dm.spinning_exact(times)
+    error = [float(np.max(np.abs(adapter.run(mech, times, {**settings, "timestep": dt}).frame["crank.theta"] - theta)))
+             for dt in (1e-3, 5e-4)]
+    assert error[0] / error[1] > 3.8
+
+
+def test_initial_values_the_reference_refuses_are_refused_with_its_key(adapter):
+    """Too many initial values for the four-bar's one degree of freedom: the
+    adapter says what the forward-dynamics reference says, naming the key,
+    before any Exudyn model exists."""
+    mech, times = dynamic_case("free-fourbar", 0.1, 11)
+    bad = dataclasses.replace(mech, initial_values=(InitialValue("A", 0.3), InitialValue("O2", 0.3)))
+    with pytest.raises(Unrepresentable) as refused:
+        adapter.default_settings(bad, times)
+    assert refused.value.key == "initial" and "too many initial values" in refused.value.reason
+
+
+@pytest.mark.parametrize("solver", ["index2", "index3"])
+def test_a_free_run_takes_the_steps_it_declares(adapter, solver):
+    """Run size (`planned_steps`, checked before any run): a torque-driven
+    run has no pre-roll, with either solver (index-3's transient pre-roll is
+    for prescribed motion), and takes exactly the declared steps."""
+    mech, times = dynamic_case("spinning-crank", 0.2, 21)
+    settings = {**adapter.default_settings(mech, times), "solver": solver}
+    per_interval, pre_roll = adapter.planned_steps(times, settings)
+    raw = adapter.run(mech, times, settings)
+    assert pre_roll == 0 and raw.info.facts["pre_roll_start"] == times[0]
+    assert raw.info.steps == per_interval * (len(times) - 1)

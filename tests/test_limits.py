@@ -286,7 +286,7 @@ def test_summary_table_escapes_names_and_reasons():
     cells = lambda line: len(line.replace("\\|", "").split("|"))
     header, failures = rows[:3], rows[3:]
     assert {cells(r) for r in header} == {cells(header[0])} and cells(header[0]) == 4
-    assert {cells(r) for r in failures} == {9}
+    assert {cells(r) for r in failures} == {12}        # ten columns: seven, then the error growth's three
     assert "a \\| b\\nc" in text and "off\\nby \\| far" in text
 
 

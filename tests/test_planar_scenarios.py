@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import CLOSED_FORM, builtin_scenario
+from mechval.adapter import mechanism_features
 from mechval.analysis import analyse, format_analysis
 from mechval.harness.simulate import simulate
 from mechval.linkages import build_mechanism
@@ -165,6 +166,48 @@ def test_redundant_parallelogram_through_the_harness():
     assert "redundant           1 constraint (Jacobian rank 12)" in text
 
 
+def slider_driven_near_dead_centre(gap: float, end: float = 1.0):
+    """The built-in slider-driven slider-crank with its slide passing `gap`
+    m from the inner dead centre s = conrod − crank = 0.2 m at t = 0.5 s:
+    s(t) = 0.35 − a·t/2 + a·t²/2, a = (0.15 − gap)/0.125, s(0.5) = 0.2 + gap."""
+    data = tomllib.loads((ROOT / "scenarios" / "slider-driven-slider-crank.toml").read_text(encoding="utf-8"))
+    a = (0.35 - 0.2 - gap) / 0.125
+    data["drive"] = [dict(data["drive"][0], phi0=0.35, omega0=-0.5 * a, alpha=a)]
+    data["time"] = {"end": end, "samples": 201}
+    return parse(data, "near-dead-centre.toml")
+
+
+def test_analyse_finds_the_near_singular_instant():
+    """1e-4 m from the dead centre the Jacobian's condition peaks at t =
+    0.5 s, over 10× its median (crank and conrod nearly collinear); 1e-2 m
+    away it stays within 2× and nothing is reported; a run that stops at
+    the near-singular instant reports it too."""
+    near = analyse(slider_driven_near_dead_centre(1e-4))
+    assert [t for t, _ in near.near_singular] == [0.5] and near.condition_t == 0.5
+    assert near.near_singular[0][1] > 10 * near.condition_median
+    text = format_analysis(near)
+    assert "near-singular       1 instant (condition peaks above 10× the median)" in text
+    assert "t =    0.50000 s  condition" in text
+    far = analyse(slider_driven_near_dead_centre(1e-2))
+    assert far.near_singular == () and far.condition_max < 2 * far.condition_median
+    assert [t for t, _ in analyse(slider_driven_near_dead_centre(1e-4, end=0.5)).near_singular] == [0.5]
+
+
+def test_analyse_refuses_an_instant_its_denser_grid_cannot_solve(monkeypatch):
+    """`analyse` solves at ≥ 2001 instants, more than the file's samples: an
+    instant refused there is one line naming the file, the key and the
+    time (it was a traceback)."""
+    import mechval.planar_analysis as planar_analysis
+    from mechval.planar_constraints import MechanismError
+
+    def refuses(mech, t):
+        raise MechanismError("time", "the loop cannot close at t = 0.4955 s")
+    monkeypatch.setattr(planar_analysis, "raw_planar", refuses)
+    with pytest.raises(ScenarioError) as caught:
+        analyse(parse(copy.deepcopy(FIVE_BAR), "five-bar.toml"))
+    assert str(caught.value) == "five-bar.toml: time: the loop cannot close at t = 0.4955 s"
+
+
 # -- refusals -----------------------------------------------------------------------------------------
 
 def mutate(base: dict, path: tuple, value) -> dict:
@@ -267,6 +310,64 @@ def test_engines_are_refused_what_their_adapters_do_not_build(engine_name):
         with pytest.raises(ScenarioError, match=rf"seed.toml: force.force1: {engine_name}: its adapter does not "
                                                 "build spring-dampers yet"):
             simulate(parse(data, "seed.toml"), engine)
+
+
+@pytest.mark.parametrize("name", ["planar-extra/parallelogram-double-fourbar", "five-bar-two-drives", "watt-six-bar",
+                                  "jansen-leg", "fourbar-seed"])
+def test_redundant_constraints_are_a_feature_an_engine_must_declare(name):
+    """Only the parallelogram (three equal parallel cranks) has a redundant
+    joint equation; an engine that cannot run one is refused it by name
+    (tests/test_exudyn_planar.py), as for every other feature."""
+    features = mechanism_features(build_mechanism(builtin_scenario(name)))
+    assert ("redundant constraints" in features) == name.endswith("parallelogram-double-fourbar")
+
+
+@pytest.mark.parametrize("name", ["watt-six-bar", "stephenson-six-bar", "jansen-leg", "slider-driven-slider-crank",
+                                  "andrews-squeezer"])
+def test_the_report_draws_the_mechanism_to_scale(name):
+    """The report's drawing (reports/plots.py) of a planar built-in: at each
+    drawn instant every body is there, each body's points keep the
+    distances its file gives (to scale, equal axes), ternary links are
+    closed polygons, both ends of every revolute joint are drawn at one
+    place (the loops are closed in the picture) and every spring is drawn
+    between its two points."""
+    from mechval.reports.plots import mechanism_figure
+    scenario = builtin_scenario(name)
+    mech = build_mechanism(scenario)
+    figure = mechanism_figure(mech, scenario.time.end)
+    assert (figure["layout"]["yaxis"]["scaleanchor"], figure["layout"]["yaxis"]["scaleratio"]) == ("x", 1)
+    scale = size(mech)
+    instants = sorted({trace["legendgroup"] for trace in figure["data"] if "legendgroup" in trace})
+    assert len(instants) == 4
+    for instant in instants:
+        drawn = {trace["text"][0]: np.column_stack([trace["x"], trace["y"]])
+                 for trace in figure["data"] if trace.get("legendgroup") == instant}
+        assert set(drawn) == {b.name for b in mech.bodies} | {f.name for f in mech.forces if hasattr(f, "stiffness")}
+        where = {}                                 # (joint, side) → drawn point
+        for body in mech.bodies:
+            joints = [j for j in mech.joints if body.name in (j.body_i, j.body_j)]
+            local = [np.array(j.point_j if j.body_j == body.name else j.point_i) for j in joints]
+            points = drawn[body.name]
+            closed = len({tuple(p) for p in points[:len(local)]}) >= 3
+            assert len(points) == len(local) + closed and (not closed or np.array_equal(points[0], points[-1]))
+            for a in range(len(local)):
+                for b in range(a):
+                    assert abs(np.linalg.norm(points[a] - points[b]) - np.linalg.norm(local[a] - local[b])) \
+                        <= 1e-9 * scale, (instant, body.name)
+            for j, point in zip(joints, points):
+                where[j.name, "j" if j.body_j == body.name else "i"] = point
+        for j in mech.joints:
+            if j.kind == "revolute":
+                ends = [where.get((j.name, side), np.array(j.point_i if side == "i" else j.point_j)) for side in "ij"]
+                assert np.linalg.norm(ends[0] - ends[1]) <= 1e-9 * scale, (instant, j.name)
+        for spring in (f for f in mech.forces if hasattr(f, "stiffness")):
+            a, b = drawn[spring.name]
+            for end, body, point in ((a, spring.body_a, spring.point_a), (b, spring.body_b, spring.point_b)):
+                joint = next((j for j in mech.joints if (j.body_i, j.point_i) == (body, point)
+                              or (j.body_j, j.point_j) == (body, point)), None)
+                if joint is not None:            # a spring end at a joint's point is drawn there
+                    side = "i" if (joint.body_i, joint.point_i) == (body, point) else "j"
+                    assert np.linalg.norm(end - where.get((joint.name, side), np.array(point))) <= 1e-9 * scale
 
 
 def planar_examples() -> list:

@@ -117,9 +117,9 @@ def test_report_escapes_scenario_text(report):
     # Run labels reach the page's script as JSON: "</" cannot end the element,
     # so every data element holds all of its JSON.
     blocks = re.findall(r'<script type="application/json" id="([^"]+)">(.*?)</script>', html, re.S)
-    assert [name for name, _ in blocks] == ["s-test-slider-drawing", "s-test-slider-signals"]
-    labels = [run["label"] for run in json.loads(blocks[1][1])["runs"]]
-    assert HOSTILE_ENGINE in labels
+    assert [name for name, _ in blocks] == ["s-test-slider-drawing", "s-test-slider-signals", "s-test-slider-energy"]
+    for _, block in blocks[1:]:
+        assert HOSTILE_ENGINE in [run["label"] for run in json.loads(block)["runs"]]
 
 
 def test_tolerance_override_shows_its_reason_beside_the_bound(report):
@@ -132,9 +132,9 @@ def test_tolerance_override_shows_its_reason_beside_the_bound(report):
     # Once above the scenario's plots, once in mujoco's records, and beside
     # the bound of every force row of mujoco.
     assert html.count(note) == 2 + len(overridden)
-    # The plain number form: no reason, said so; beside T12's bound and the
-    # power residual's, which is held to the torque tolerance.
-    assert html.count("mujoco override: torque 0.03 (scenario 0.01): no reason given in the scene file") == 2 + 2
+    # The plain number form: no reason, said so; beside T12's bound, the
+    # power residual's and the energy balance's, held to the torque tolerance.
+    assert html.count("mujoco override: torque 0.03 (scenario 0.01): no reason given in the scene file") == 2 + 3
 
 
 def test_failing_scenarios_come_first_and_open(tmp_path):

@@ -102,9 +102,42 @@
     return {data: traces, layout: layout};
   }
 
+  // Energy against time (plots.energy_data): per run its energy E and,
+  // below on a log axis, its energy drift or balance residual.
+  function energyFigure(data, codes) {
+    const traces = [];
+    data.runs.forEach((run, k) => {
+      const [t0, t1, n] = run.t;
+      const time = i => t0 + (t1 - t0) * i / (n - 1);
+      const at = run.samples ? unpack(codes, run.samples) : Uint32Array.from({length: n}, (_, i) => i);
+      const x = Float64Array.from(at, time);
+      const common = {x: x, name: run.label, legendgroup: run.label, mode: "lines",
+        line: {color: run.colour, width: run.label === "reference" ? 2.5 : 1.2}};
+      traces.push(Object.assign({}, common, {y: unpack(codes, run.energy), xaxis: "x", yaxis: "y",
+        hovertemplate: run.label + " E %{y:.8g} J at t = %{x:.4g} s<extra></extra>"}));
+      traces.push(Object.assign({}, common, {showlegend: false, xaxis: "x2", yaxis: "y2",
+        y: Float64Array.from(unpack(codes, run.residual), e => e === 0 ? NaN : Math.abs(e)),
+        hovertemplate: run.label + " %{y:.3g} at t = %{x:.4g} s<extra></extra>"}));
+    });
+    const title = (text, axis) => ({text: text, xref: axis + " domain", yref: "y" + axis.slice(1) + " domain",
+      x: 0.5, y: 1, yanchor: "bottom", showarrow: false, font: {size: 12}});
+    const residual = data.measure === "energy_drift" ? "energy drift |E − E(t0)| / S" :
+      "energy balance |E − E(t0) − W| / S";
+    return {data: traces, layout: {
+      grid: {rows: 2, columns: 1, pattern: "independent", ygap: 0.3}, height: 520,
+      margin: {l: 70, r: 20, t: 60, b: 40}, hovermode: "closest",
+      legend: {orientation: "h", x: 0, y: 1, yanchor: "top", yref: "container"},
+      xaxis: {}, xaxis2: {matches: "x", title: {text: "t [s]"}}, yaxis: {exponentformat: "e"},
+      yaxis2: {type: "log", exponentformat: "e"},
+      annotations: [title("energy E = kinetic + potential [J]", "x"), title(residual, "x2")]}};
+  }
+
   async function figureFor(element) {
     const data = figureData(element.dataset.figure);
-    return element.dataset.kind === "plotly" ? data : signalFigure(data, await codeStream(data), element.dataset.kind);
+    const kind = element.dataset.kind;
+    if (kind === "plotly") return data;
+    const codes = await codeStream(data);
+    return kind === "energy" ? energyFigure(data, codes) : signalFigure(data, codes, kind);
   }
 
   const hiddenEngines = new Set();

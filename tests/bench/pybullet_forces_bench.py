@@ -2,7 +2,7 @@
 spring element between bodies and keeps no external load from one step to
 the next, so the adapter applies the Mechanism's spring-dampers and body
 torques before every step. This prints the stepping wall time per step of
-the scenes of tests/test_pybullet_planar.py with their force elements and
+the scenes of tests/planar_scenes.py with their force elements and
 with them removed (same model, settings and steps), and the difference.
 
     .venv/bin/python tests/bench/pybullet_forces_bench.py [--repeats N]
@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mechval.engines.pybullet import PybulletAdapter   # noqa: E402
 from mechval.engines.pybullet_run import run_model   # noqa: E402
 from mechval.linkages import build_mechanism                       # noqa: E402
-from test_pybullet_planar import SCENES, scene                      # noqa: E402
+from planar_scenes import SCENES, scene                             # noqa: E402
 
 
 def stepping_time(mechanism, times, settings) -> tuple[float, int]:

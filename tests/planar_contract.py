@@ -1,0 +1,65 @@
+"""What every engine must do on planar files beyond the four kinds (issue
+14), as one suite each engine's planar tests subclass, like
+tests/contract.py's AdapterContract:
+
+    class TestPlanarContract(PlanarContract):
+        engine = "mujoco"
+
+On each scene of tests/planar_scenes.py (two drives, a prismatic drive, a
+spring-damper between moving links, body torques, a two-loop six-bar):
+- every signal is within the scene's default tolerances of the general
+  reference (no per-engine bound), and a signal is missing only where the
+  adapter says it cannot report it (`missing`, with the reason's words);
+- the model audit finds the compiled model is the scene, and reads back
+  every drive and force element (none silently dropped).
+Engine-specific checks (MuJoCo's inverse mode, fault injection into each
+engine's compiled model) stay in tests/test_<engine>_planar.py.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar, Mapping
+
+import pytest
+
+from conftest import engine_or_skip
+from mechval.audit import failures, force_item, format_audit
+from mechval.compare import compare
+from mechval.harness.simulate import simulate
+from mechval.linkages import build_mechanism
+from planar_scenes import SCENES, scene
+
+
+class PlanarContract:
+    engine: ClassVar[str]
+    #: Signals the adapter reports missing on these scenes → words its
+    #: reason must contain (docs/engines.md says why for each).
+    missing: ClassVar[Mapping[str, str]] = {}
+
+    @pytest.fixture
+    def adapter(self):
+        return engine_or_skip(self.engine)
+
+    @pytest.mark.parametrize("name", SCENES)
+    def test_meets_the_default_tolerances(self, adapter, name):
+        scenario = scene(name)
+        records = compare(simulate(scenario, "reference"), simulate(scenario, adapter),
+                          scenario.tolerance_for(self.engine), scenario.name, self.engine)
+        failed = records[records["verdict"] == "fail"]
+        assert not records.empty and failed.empty, failed[["signal", "max_error", "bound", "reason"]].to_string()
+        missing = records[records["missing"] > 0]
+        assert set(missing["signal"]) <= set(self.missing), missing[["signal", "reason"]].to_string()
+        for signal, reason in zip(missing["signal"], missing["reason"]):
+            assert self.missing[signal] in reason, (signal, reason)
+
+    @pytest.mark.parametrize("name", SCENES)
+    def test_the_model_holds_the_scene_and_its_new_elements(self, adapter, name):
+        """The audit reads back every drive, spring-damper and body torque,
+        and finds no other spring, damper, motor or constraint."""
+        scenario = scene(name)
+        mechanism = build_mechanism(scenario)
+        table = adapter.audit(mechanism, scenario.time.t, adapter.settings_for(scenario, mechanism))
+        assert failures(table).empty, "\n" + format_audit(failures(table))
+        audited = set(table["item"])
+        assert {force_item(f) for f in mechanism.forces} <= audited
+        assert {"drive"} | {f"drive {d.name}" for d in mechanism.extra_drives} <= audited

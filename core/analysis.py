@@ -139,6 +139,11 @@ def _refuse_nonfinite(scenario: Scenario, t: np.ndarray, values: np.ndarray, key
 
 
 def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
+    if scenario.forward_dynamics:
+        key = "drive.type" if scenario.planar is None else "initial"
+        raise ScenarioError(scenario.source, key, "`mechval analyse` follows a prescribed motion; this scene's "
+                                                  "motion is integrated (torque-driven or free): see it with "
+                                                  "`mechval simulate --engine reference`")
     if scenario.mechanism == "planar":
         return analyse_planar(scenario, samples)
     geometry = scenario.geometry

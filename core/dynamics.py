@@ -56,6 +56,21 @@ from .planar_solver import CHUNK, UNIQUE_TOL, PlanarSolver, default_pose
 RTOL = 1e-10
 METHODS = ("DOP853", "Radau")
 NEWTON_ITERATIONS = 30
+#: Most right-hand-side evaluations of one integration (README "Limits"):
+#: each solves the positions by Newton, 1.5-3 ms measured on a shared
+#: 2-core machine at load 7 (tests/bench/dynamics_bench.py), so 3·10⁴ take
+#: 45-90 s, within the fuzz tests' 120 s bound on one case. The built-ins
+#: take 150-2,500; the seed four-bar falling for 10 s 9,560. A longer run is
+#: refused rather than left running for many minutes.
+MAX_EVALUATIONS = 30_000
+
+
+class TooLong(Exception):
+    """The integration reached MAX_EVALUATIONS at instant t."""
+
+    def __init__(self, t: float):
+        super().__init__(t)
+        self.t = t
 
 
 @dataclass(frozen=True)
@@ -208,6 +223,8 @@ class ForwardDynamics:
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         """dy/dt for y = (z, ż): the ODE that solve_ivp integrates."""
+        if self.evaluations >= MAX_EVALUATIONS:
+            raise TooLong(t)
         return np.concatenate([y[self.k:], self._state(t, y)[3]])
 
     def tolerances(self, rtol: float, span: float) -> np.ndarray:
@@ -273,6 +290,12 @@ class ForwardDynamics:
                 sol = solve_ivp(self.rhs, (start.t0, t_end), y0, method=method, rtol=rtol, atol=atol,
                                 dense_output=True)
                 failure = "" if sol.status == 0 else f"the integrator stopped: {sol.message}"
+            except TooLong as error:
+                share = (error.t - start.t0) / (t_end - start.t0)
+                raise MechanismError("time.end", f"the reference's integration reached only t = {error.t:.6g} s of "
+                                                 f"{t_end:g} s in {MAX_EVALUATIONS:,} evaluations, the limit (the "
+                                                 f"run would need about {1 / max(share, 1e-300):.3g} times as "
+                                                 "many); shorten time.end") from None
             except MechanismError as error:
                 failure = error.reason
             if failure:

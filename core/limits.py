@@ -64,6 +64,10 @@ def check_scene(scenario: Scenario) -> None:
         angle, when = crank_angle_peak(law.phi0, law.omega0, law.alpha, end)
         if angle > MAX_CRANK_ANGLE:
             raise fail(key, _angle_reason(angle, f"at t = {when:.6g} s") + "; shorten time.end or lower omega0/alpha")
+    for value in scenario.initial_values:       # a torque-driven or free run's start
+        if abs(value.value) > MAX_CRANK_ANGLE:
+            key = "drive.phi0" if scenario.planar is None else f"initial.{value.joint}"
+            raise fail(key, _angle_reason(abs(value.value), "at t = 0"))
     masses = _masses(scenario)
     heaviest = max(mass for _, mass, _ in masses)
     for key, mass, izz in masses:        # the moving links
@@ -82,7 +86,7 @@ def check_scene(scenario: Scenario) -> None:
 def _drive_laws(scenario: Scenario) -> list[tuple[str, DriveLaw]]:
     """(key, law) of every drive: the [drive] table, or a planar file's [[drive]]s."""
     if scenario.planar is None:
-        return [("drive", scenario.drive)]
+        return [("drive", scenario.drive)] if scenario.drive is not None else []
     return [(f"drive[{k}]", drive.law) for k, drive in enumerate(scenario.planar.drives)]
 
 

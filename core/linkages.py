@@ -4,10 +4,13 @@ check_closure, kinematics, body_motion, build_mechanism)."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections import OrderedDict
 from types import ModuleType
 
 from . import fourbar, inverted_slider, slider_crank, slotted_lever
+from .drive import DriveLaw
+from .dynamic_scene import with_dynamics
 from .mechanism import Mechanism
 from .planar_scene import build_mechanism as build_planar
 from .scenario import Scenario
@@ -31,16 +34,24 @@ _BUILT_KEPT = 64
 
 def build_mechanism(scenario: Scenario) -> Mechanism:
     """The generic `Mechanism` of a validated scenario (a planar file's
-    from its bodies and joints, `mechval.planar_scene`); the same object
-    for the same scenario object while it is among the last built."""
+    from its bodies and joints, `mechval.planar_scene`; a torque-driven or
+    free scene's with the integrated motion, `mechval.dynamic_scene`); the
+    same object for the same scenario object while it is among the last
+    built."""
     kept = _BUILT.get(id(scenario))
     if kept is not None and kept[0] is scenario:
         _BUILT.move_to_end(id(scenario))
         return kept[1]
     if scenario.mechanism == "planar":
         mechanism = build_planar(scenario)
+    elif scenario.drive is None:    # a torque-driven or free crank: built at its initial angle and rate
+        start = scenario.initial_values[0]
+        stand_in = dataclasses.replace(scenario, drive=DriveLaw(start.value, start.rate))
+        mechanism = LINKAGES[scenario.mechanism].build_mechanism(stand_in)
     else:
         mechanism = LINKAGES[scenario.mechanism].build_mechanism(scenario)
+    if scenario.forward_dynamics:
+        mechanism = with_dynamics(scenario, mechanism)
     _BUILT[id(scenario)] = (scenario, mechanism)
     if len(_BUILT) > _BUILT_KEPT:
         _BUILT.popitem(last=False)

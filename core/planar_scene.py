@@ -8,7 +8,8 @@ centre of mass's motion, B.theta, B.omega, B.alpha, B.x, B.y, B.vx, B.vy,
 B.ax, B.ay; per joint J its reaction (the force by its first body on its
 second, world axes), J.Fx, J.Fy, and for a prismatic joint its normal force
 J.N and couple J.M; per drive, named after its joint, its torque J.T
-(revolute) or force J.F (prismatic). The first drive's raw column stays
+(revolute) or force J.F (prismatic); per torque law N (`[[torque]]`) the
+torque it applies, N.T. The first drive's raw column stays
 "drive.T" (or "drive.F"), the name every adapter writes.
 """
 
@@ -20,7 +21,7 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from .mechanism import Body, BodyPose, BodyTorque, Drive, Joint, Mechanism, SpringDamper
+from .mechanism import Body, BodyPose, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 from .planar_solver import raw_planar
 from .scenario import Scenario
 
@@ -38,6 +39,9 @@ class PlanarScene:
     forces: tuple[SpringDamper | BodyTorque, ...] = ()
     pose: Mapping[str, BodyPose] = field(default_factory=dict)
     gravity: tuple[float, float] = (0.0, 0.0)
+    #: Applied joint torque laws (`[[torque]]`); the initial values of a
+    #: torque-driven or free run are the scenario's (`[[initial]]`).
+    torques: tuple[TorqueLaw, ...] = ()
 
 
 def signal_map(scene: PlanarScene) -> dict[str, str]:
@@ -53,6 +57,8 @@ def signal_map(scene: PlanarScene) -> dict[str, str]:
     for drive in scene.drives:
         kind = kinds[drive.joint]
         names[f"{drive.joint}.{'T' if kind == 'revolute' else 'F'}"] = drive.effort_column(kind)
+    for law in scene.torques:
+        names[f"{law.name}.T"] = f"{law.name}.T"
     return names
 
 
@@ -69,11 +75,13 @@ class SolvedMotion:
 
 
 def build_mechanism(scenario: Scenario) -> Mechanism:
-    """The generic `Mechanism` of a planar scenario."""
+    """The generic `Mechanism` of a planar scenario (its torque laws and
+    initial values are added by `mechval.dynamic_scene`)."""
     scene: PlanarScene = scenario.planar
     motion = SolvedMotion()      # it needs the mechanism it belongs to
     mechanism = Mechanism(
-        name=scenario.name, kind="planar", bodies=scene.bodies, joints=scene.joints, drive=scene.drives[0],
+        name=scenario.name, kind="planar", bodies=scene.bodies, joints=scene.joints,
+        drive=scene.drives[0] if scene.drives else None,
         extra_drives=scene.drives[1:], gravity=scene.gravity, motion=motion, signal_map=signal_map(scene),
         forces=scene.forces, assembly_pose=dict(scene.pose),
     )

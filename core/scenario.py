@@ -13,6 +13,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from .drive import DriveLaw
+from .mechanism import InitialValue, TorqueLaw
 
 
 #: Longest key and reason shown in an error message: a key, or a value a
@@ -109,7 +110,9 @@ class Scenario:
     description: str
     geometry: Mapping[str, Any]
     mass: Mapping[str, LinkMass]
-    drive: DriveLaw
+    #: The prescribed crank law; None for a torque-driven or free crank
+    #: (`dynamics`) or a planar file without drives.
+    drive: DriveLaw | None
     gravity: tuple[float, float] | None
     damping: Mapping[str, float]
     time: TimeGrid
@@ -120,6 +123,17 @@ class Scenario:
     #: A planar file's bodies, joints, drives, forces and assembly pose
     #: (`mechval.planar_scene.PlanarScene`); None for the four kinds.
     planar: Any = None
+    #: Torque-driven and free motion (docs/scenario-format.md): applied
+    #: joint torque laws and the initial values a run starts from, one per
+    #: degree of freedom no drive prescribes (`mechval.dynamics`).
+    torque_laws: tuple[TorqueLaw, ...] = ()
+    initial_values: tuple[InitialValue, ...] = ()
+
+    @property
+    def forward_dynamics(self) -> bool:
+        """True when the motion is integrated rather than prescribed
+        (`Mechanism.forward_dynamics`)."""
+        return self.drive is None or bool(self.torque_laws) or bool(self.initial_values)
 
     def tolerance_for(self, engine: str | None) -> Tolerance:
         """The scenario's tolerance with the engine's overrides applied."""

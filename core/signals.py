@@ -87,10 +87,11 @@ def signal_names(kind: str) -> tuple[str, ...]:
 
 
 def mechanism_signal_names(mechanism: Mechanism) -> tuple[str, ...]:
-    """Canonical column order for a mechanism: its kind's, or for a planar
-    file the order of its signal map (bodies, joints, drives)."""
+    """Canonical column order for a mechanism: its kind's (without T12 for
+    a free crank, which has no drive), or for a planar file the order of
+    its signal map (bodies, joints, drives, torque laws)."""
     if mechanism.kind in MECHANISM_SIGNALS:
-        return signal_names(mechanism.kind)
+        return tuple(n for n in signal_names(mechanism.kind) if n == "t" or n in mechanism.signal_map)
     return ("t", *mechanism.signal_map)
 
 

@@ -20,12 +20,16 @@ from mechval.drive import DriveLaw
 from mechval.analysis import check_trustworthy
 from mechval.limits import check_scene, shown_int
 from mechval.linkages import LINKAGES
+from mechval.mechanism import InitialValue, TorqueLaw
 from mechval.scenario import LinkMass, Scenario, ScenarioError, TimeGrid, Tolerance
 
+from .dynamic import check_initial_state
 from .planar import parse_planar
 from .tables import MAX_MAGNITUDE, Reader, engine_tables, shown, tolerance
 
 HERE = Path(__file__).resolve().parent
+#: The crank's pivot joint in every closed-form kind's Mechanism.
+CRANK_PIVOT = "O2"
 TOP_KEYS = {"name", "mechanism", "description", "tags", "geometry", "mass", "drive",
             "effects", "time", "tolerance", "engines"}
 REQUIRED_TABLES = ("geometry", "mass", "drive", "time")
@@ -123,10 +127,7 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
     module = LINKAGES[kind]
     geometry = _geometry(top.sub("geometry"), kind, module)
     mass = _masses(top.sub("mass"), module, geometry)
-    drive_table = top.sub("drive")
-    drive_table.only({"phi0", "omega0", "alpha"})
-    drive = DriveLaw(drive_table.number("phi0", default=0.0), drive_table.number("omega0"),
-                     drive_table.number("alpha", default=0.0))
+    drive, torque_laws, initial_values = _drive(top.sub("drive"))
     gravity, damping = _effects(top.sub("effects"), module)
     time_table = top.sub("time")
     time_table.only({"end", "samples"})
@@ -139,11 +140,40 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
     scenario = Scenario(name=name, mechanism=kind, description=description, geometry=geometry, mass=mass,
                         drive=drive, gravity=gravity, damping=damping, time=time,
                         tolerance=Tolerance().updated(tolerance(top.sub("tolerance"))),
-                        engines=engine_tables(top.sub("engines"), engines), tags=tuple(tags), source=Path(source) if source else None)
+                        engines=engine_tables(top.sub("engines"), engines), tags=tuple(tags), source=Path(source) if source else None,
+                        torque_laws=torque_laws, initial_values=initial_values)
     check_scene(scenario)       # before anything is evaluated at the samples
+    if drive is None:           # the crank's motion is integrated: its start must assemble
+        start = DriveLaw(initial_values[0].value)
+        module.check_closure(module.Geometry(**geometry), start, np.zeros(1), source, key="drive.phi0")
+        check_initial_state(scenario, {"initial": "drive.phi0", "torque": "drive"})
+        return scenario
     module.check_closure(module.Geometry(**geometry), drive, _dense_times(time), source)
     check_trustworthy(scenario)
     return scenario
+
+
+#: The keys of each [drive] type of the four kinds.
+DRIVE_KEYS = {"prescribed": {"phi0", "omega0", "alpha"},
+              "torque": {"phi0", "omega0", "torque", "amplitude", "frequency", "phase"},
+              "free": {"phi0", "omega0"}}
+
+
+def _drive(table: Reader) -> tuple[DriveLaw | None, tuple[TorqueLaw, ...], tuple[InitialValue, ...]]:
+    """The crank at O2: a prescribed law φ(t) (`type = "prescribed"`, the
+    default), or a torque law (`"torque"`) or nothing (`"free"`) from the
+    initial angle phi0 and rate omega0 (docs/scenario-format.md#drive)."""
+    kind = table.string("type", default="prescribed", choices=tuple(DRIVE_KEYS))
+    table.only(DRIVE_KEYS[kind] | {"type"})
+    if kind == "prescribed":
+        return (DriveLaw(table.number("phi0", default=0.0), table.number("omega0"),
+                         table.number("alpha", default=0.0)), (), ())
+    initial = (InitialValue(CRANK_PIVOT, table.number("phi0", default=0.0), table.number("omega0", default=0.0)),)
+    if kind == "free":
+        return None, (), initial
+    law = TorqueLaw(CRANK_PIVOT, table.number("torque"), table.number("amplitude", default=0.0),
+                    table.number("frequency", default=0.0, nonnegative=True), table.number("phase", default=0.0))
+    return None, (law,), initial
 
 
 #: Most points of the dense grid: beyond the samples' own density at the

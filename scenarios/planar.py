@@ -1,6 +1,9 @@
 """Planar files (`mechanism = "planar"`, docs/scenario-format.md#planar-files):
 any mechanism of rigid bodies, revolute and prismatic joints, drives and
-force elements, validated into a `Scenario` whose `planar` holds the scene.
+force elements, validated into a `Scenario` whose `planar` holds the scene;
+joints left undriven take applied torque laws (`[[torque]]`) and the
+initial values a run starts from (`[[initial]]`), checked by assembling the
+consistent initial state (`scenarios.dynamic`).
 
 Every refusal is a `ScenarioError` naming the file, the key and the reason.
 Beyond each key's own checks: an unknown body or point, a joint from a body
@@ -22,15 +25,16 @@ from typing import Any, Collection, Mapping
 from mechval.drive import DriveLaw
 from mechval.limits import check_scene
 from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, Joint, SpringDamper
+from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, SpringDamper, TorqueLaw
 from mechval.planar_scene import PlanarScene
 from mechval.planar_solver import MechanismError, PlanarSolver
 from mechval.scenario import Scenario, ScenarioError, TimeGrid, Tolerance
 
+from .dynamic import check_initial_state
 from .tables import Reader, engine_tables, tolerance
 
-TOP_KEYS = {"name", "mechanism", "description", "tags", "ground", "body", "joint", "drive", "force",
-            "assembly", "effects", "time", "tolerance", "engines"}
+TOP_KEYS = {"name", "mechanism", "description", "tags", "ground", "body", "joint", "drive", "torque",
+            "initial", "force", "assembly", "effects", "time", "tolerance", "engines"}
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*\Z")
 
 
@@ -49,18 +53,24 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
     joints = _joints(top, points)
     _connected(top, bodies, joints)
     drives = _drives(top, joints)
+    torques = _torques(top, joints, drives)
+    initial = _initial(top, joints)
     forces = _forces(top, points)
     pose = _assembly(top.sub("assembly", required=True), bodies)
     gravity = _gravity(top.sub("effects"))
     time = _time(top.sub("time", required=True))
-    scene = PlanarScene(bodies, joints, drives, forces, pose, gravity)
+    scene = PlanarScene(bodies, joints, drives, forces, pose, gravity, torques)
     scenario = Scenario(name=name, mechanism="planar", description=description, geometry={}, mass={},
-                        drive=drives[0].law, gravity=gravity, damping={}, time=time,
+                        drive=drives[0].law if drives else None, gravity=gravity, damping={}, time=time,
                         tolerance=Tolerance().updated(tolerance(top.sub("tolerance"))),
                         engines=engine_tables(top.sub("engines"), engines), tags=tuple(tags),
-                        source=Path(source) if source else None, planar=scene)
+                        source=Path(source) if source else None, planar=scene,
+                        torque_laws=torques, initial_values=initial)
     check_scene(scenario)       # before the mechanism is followed over the run
-    _solvable(scenario, source)
+    if scenario.forward_dynamics:
+        check_initial_state(scenario)
+    else:
+        _solvable(scenario, source)
     return scenario
 
 
@@ -199,7 +209,7 @@ def _connected(top: Reader, bodies: tuple[Body, ...], joints: tuple[Joint, ...])
 def _drives(top: Reader, joints: tuple[Joint, ...]) -> tuple[Drive, ...]:
     known = {j.name for j in joints}
     drives, driven = [], set()
-    for drive in _array(top, "drive", required=True):
+    for drive in _array(top, "drive"):
         drive.only({"joint", "phi0", "omega0", "alpha"})
         joint = drive.string("joint")
         if joint not in known:
@@ -212,6 +222,50 @@ def _drives(top: Reader, joints: tuple[Joint, ...]) -> tuple[Drive, ...]:
         # its canonical signal, like the others', is named after its joint.
         drives.append(Drive(joint, law, name="drive" if not drives else joint))
     return tuple(drives)
+
+
+def _torques(top: Reader, joints: tuple[Joint, ...], drives: tuple[Drive, ...]) -> tuple[TorqueLaw, ...]:
+    """[[torque]]: applied torque laws T(t) = torque + amplitude·sin(2π·frequency·t + phase)
+    at revolute joints, each named after its joint unless given a `name`."""
+    kinds = {j.name: j.kind for j in joints}
+    driven = {d.joint for d in drives}
+    laws, names = [], {d.name for d in drives} | {d.joint for d in drives}
+    for entry in _array(top, "torque"):
+        entry.only({"name", "joint", "torque", "amplitude", "frequency", "phase"})
+        joint = entry.string("joint")
+        if joint not in kinds:
+            entry.fail("joint", f"unknown joint {joint!r} (joints: {', '.join(sorted(kinds))})")
+        name = _name(entry) if "name" in entry.table else joint
+        law = Reader(entry.source, f"torque.{name}", entry.table)
+        if kinds[joint] != "revolute":
+            law.fail("joint", f"joint {joint!r} is prismatic: a torque law acts at a revolute joint")
+        if joint in driven:
+            law.fail("joint", f"joint {joint!r} has a drive, which prescribes its motion whatever the torque")
+        if name in names:
+            law.fail("name", f"a drive or another torque law is named {name!r} (give this one a `name`)")
+        names.add(name)
+        laws.append(TorqueLaw(joint, law.number("torque"), law.number("amplitude", default=0.0),
+                              law.number("frequency", default=0.0, nonnegative=True),
+                              law.number("phase", default=0.0), name=name))
+    return tuple(laws)
+
+
+def _initial(top: Reader, joints: tuple[Joint, ...]) -> tuple[InitialValue, ...]:
+    """[[initial]]: a joint's coordinate (rad or m) and rate at t = 0, one
+    per degree of freedom the drives leave (checked with the assembly)."""
+    known = {j.name for j in joints}
+    values, seen = [], set()
+    for entry in _array(top, "initial"):
+        entry.only({"joint", "value", "rate"})
+        joint = entry.string("joint")
+        if joint not in known:
+            entry.fail("joint", f"unknown joint {joint!r} (joints: {', '.join(sorted(known))})")
+        value = Reader(entry.source, f"initial.{joint}", entry.table)
+        if joint in seen:
+            value.fail("joint", "a second initial value for this joint")
+        seen.add(joint)
+        values.append(InitialValue(joint, value.number("value"), value.number("rate", default=0.0)))
+    return tuple(values)
 
 
 def _forces(top: Reader, points: dict) -> tuple[SpringDamper | BodyTorque, ...]:

@@ -19,14 +19,18 @@ def builtin_scenario(name: str):
 
 
 #: Built-ins of the four closed-form kinds (each has a planar twin); the
-#: planar built-ins have no closed form (tests/test_new_scenes.py).
-CLOSED_FORM = [name for name in BUILTIN if builtin_scenario(name).mechanism != "planar"]
+#: planar built-ins have no closed form (tests/test_new_scenes.py), nor
+#: have torque-driven and free scenes (integrated: tests/test_dynamic_scenes.py).
+CLOSED_FORM = [name for name in BUILTIN if builtin_scenario(name).mechanism != "planar"
+               and not builtin_scenario(name).forward_dynamics]
 #: Built-in × engine pairs the engine cannot run at all, with the refusal the
 #: harness gives up front (the engine's failure is the finding, see the
 #: scene's file; tests/test_exudyn_planar.py runs the engine on it anyway
 #: and fails when the engine starts to run it, so that the note gets updated).
 CANNOT_RUN = {("exudyn", "planar-extra/parallelogram-double-fourbar"):
-              "parallelogram-double-fourbar.toml: joint: exudyn: cannot run redundant constraints"}
+              "parallelogram-double-fourbar.toml: joint: exudyn: cannot run redundant constraints",
+              ("exudyn", "double-fourbar-falling"):
+              "double-fourbar-falling.toml: joint: exudyn: cannot run redundant constraints"}
 
 
 @functools.lru_cache(maxsize=None)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from mechval.engines.base import EngineAdapter, RawRun
+from mechval.dynamics import raw_dynamics
 from mechval.reference import raw_reference
 
 
@@ -108,8 +109,20 @@ class Spiking(_Fake):
         return RawRun(raw)
 
 
+class Loose(_Fake):
+    """Torque-driven and free scenes: the forward-dynamics reference with
+    its integrator's relative tolerance set to the time step (a coarser
+    setting, a larger error: a stand-in for an engine's step ladder)."""
+    name = "loose"
+    features = frozenset({"torque laws", "free motion"})
+
+    def run(self, mechanism, times, settings):
+        solution = raw_dynamics(mechanism, times, rtol=float(settings["timestep"]))
+        return RawRun(solution.frame, solution.missing)
+
+
 FAKES = {cls.name: f"fake_engines:{cls.__name__}"
-         for cls in (Faithful, Stepless, Crashing, Hanging, Busy, NonFinite, Raising, Spiking)}
+         for cls in (Faithful, Stepless, Crashing, Hanging, Busy, NonFinite, Raising, Spiking, Loose)}
 
 
 if __name__ == "__main__":

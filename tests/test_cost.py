@@ -23,6 +23,9 @@ from mechval.harness.executors import LocalExecutor
 from mechval.reports import build
 from mechval.reports.cost_report import cost_section
 from mechval.scenarios import builtin_path, load
+from mechval.harness.simulate import simulate
+from mechval.kinematics import step_rate
+from mechval.linkages import build_mechanism
 
 ENGINES = [name for name, reason in registry.availability().items() if not reason]
 #: Columns that must not depend on where a point ran (times naturally do).
@@ -134,6 +137,34 @@ def test_an_adapter_without_a_time_step_costs_one_point(monkeypatch, short_toml)
     mine = table[table["engine"] == "stepless"]
     assert set(mine["variant"]) == {"default"} and mine["default"].all() and (mine["failure"] == "").all()
     assert mine["s_per_sim_s"].notna().all()
+
+
+def test_a_free_scene_sweeps_its_ladder_at_its_reference_runs_peak_rate(monkeypatch, tmp_path):
+    """fourbar-falling (no drive) cut to 0.5 s: the ladder's rotations per
+    step are taken at Ω of the reference's integrated run (at least its
+    peak |ω2|); each point's error is over the whole run (the largest
+    |engine − reference| over every sample), finite, and shrinks with the
+    setting (the fake 'loose' engine: the reference at rtol = step)."""
+    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    text = builtin_path("fourbar-falling").read_text(encoding="utf-8")
+    path = tmp_path / "short-falling.toml"
+    path.write_text(text.replace("end = 3.0", "end = 0.5").replace("samples = 301", "samples = 51"), encoding="utf-8")
+    scenario = load(str(path))
+    interval, times = 0.01, scenario.time.t
+    reference = simulate(scenario, "reference").frame
+    rate = step_rate(build_mechanism(scenario), times)
+    assert rate >= np.abs(reference["omega2"]).max() > 0
+    points = points_for(scenario, "loose")
+    ladder = {nice_count(interval * rate / rad) for rad in registry.adapter_class("loose").cost_ladder}
+    assert {round(interval / p.step) for p in points} == ladder | {10}       # the fake's default: 1 ms
+    table = sweep([scenario], ["loose"], LocalExecutor(workers=2, timeout=300.0), repeats=1)
+    angle = table[(table["engine"] == "loose") & (table["class"] == "angle")].sort_values("step_s")
+    assert (angle["failure"] == "").all() and np.isfinite(angle["error"]).all()
+    assert angle["error"].iloc[0] < angle["error"].iloc[-1]
+    coarsest = angle.iloc[-1]
+    engine = simulate(scenario, "loose", {"timestep": coarsest["step_s"]}).frame
+    whole_run = max(np.abs(engine[s] - reference[s]).max() for s in ("theta2", "theta3", "theta4"))
+    assert coarsest["error"] == whole_run
 
 
 def test_order_is_fitted_over_the_asymptotic_range_only():

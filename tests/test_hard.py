@@ -23,6 +23,14 @@ HARD = [name for name in BUILTIN if "hard" in builtin_scenario(name).tags]
 #: The long run (509 revolutions, ~1 min per engine) runs in full under
 #: `-m slow`; by default its first tenth (51 revolutions) stands in for it.
 LONG = "fourbar-long-run"
+#: Engine × hard scene pairs an engine runs but not within the bounds, with
+#: the figures measured (an engine finding, kept visible as an xfail).
+BEYOND = {("pybullet", "double-fourbar-falling"): (
+    "PyBullet on the free redundant double four-bar at its default step (4.2e-4 s): energy drift 5.3e-2 of the "
+    "peak kinetic energy (bound 1e-2), c1.theta 0.059 rad off, coupler.y 0.058 m, c2.alpha 3.9 relative, power "
+    "residual 1.25; at 1.04e-4 s: drift 9.4e-3, c1.theta 2.7e-3 rad; at 2.6e-5 s: drift 2.9e-4, angles 5e-6 rad, "
+    "but c3.alpha still 5x its bound (the redundant pins' load split differs step to step, as on "
+    "parallelogram-double-fourbar)")}
 HARD_CASES = [pytest.param(name, marks=pytest.mark.slow) if name == LONG else name for name in HARD] + [
     f"{LONG}@tenth"]
 
@@ -46,8 +54,10 @@ def test_hard_scenarios_exist():
 @pytest.mark.engine
 @pytest.mark.parametrize("scenario_name", HARD_CASES)
 @pytest.mark.parametrize("engine_name", ENGINE_NAMES)
-def test_engine_stable_and_accurate(engine_name, scenario_name, record_comparison):
+def test_engine_stable_and_accurate(engine_name, scenario_name, record_comparison, request):
     engine = engine_or_skip(engine_name)
+    if (engine_name, scenario_name) in BEYOND:
+        request.applymarker(pytest.mark.xfail(reason=BEYOND[engine_name, scenario_name], strict=True))
     scenario, reference = hard_case(scenario_name)
     if (engine_name, scenario_name) in CANNOT_RUN:
         with pytest.raises(Exception, match=CANNOT_RUN[engine_name, scenario_name]):

@@ -1,0 +1,75 @@
+"""The `Mechanism` of a torque-driven or free scene (docs/scenario-format.md:
+`[drive] type = "torque"` or `"free"` for the four kinds, `[[torque]]` and
+`[[initial]]` in planar files): the prescribed mechanism's bodies, joints
+and force elements, its drive replaced by the scene's torque laws and
+initial values, and its `motion` the forward-dynamics reference's
+(`mechval.dynamics`), so that everything that reads a mechanism's motion —
+an engine's start, the step rule's peak rate Ω (`mechval.kinematics.
+step_rate`), the assembly branch — reads the integrated motion.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import OrderedDict
+
+import numpy as np
+import pandas as pd
+
+from .dynamics import ForwardDynamics
+from .mechanism import BodyPose, Mechanism
+from .planar_solver import default_pose
+from .planar_constraints import MechanismError
+from .scenario import Scenario, ScenarioError
+
+#: Integrated runs kept per process (a scene's samples and the step rule's
+#: dense grid are each asked for by every adapter's default settings).
+CACHED_RUNS = 8
+_runs: OrderedDict = OrderedDict()
+
+
+class IntegratedMotion:
+    """A torque-driven or free mechanism's `motion`: the raw motion columns
+    of the forward-dynamics reference from its initial values at t = 0
+    (instants from 0 on), the last few runs kept. A run the reference
+    refuses (too long, a toggle of the stated joints) is bad input of the
+    scenario file `source`, whoever asked for the motion."""
+
+    def __init__(self, source=None, mechanism: Mechanism | None = None):
+        self.source, self.mechanism = source, mechanism
+
+    def __call__(self, t: np.ndarray) -> pd.DataFrame:
+        t = np.asarray(t, dtype=float)
+        # The pose picks the branch but takes no part in a Mechanism's equality.
+        key = (self.mechanism, tuple(sorted(self.mechanism.assembly_pose.items())), t.tobytes())
+        if key not in _runs:
+            try:
+                _runs[key] = ForwardDynamics(self.mechanism, t0=0.0).solve(t).frame
+            except MechanismError as exc:
+                raise ScenarioError(self.source, exc.key, exc.reason) from None
+            while len(_runs) > CACHED_RUNS:
+                _runs.popitem(last=False)
+        _runs.move_to_end(key)
+        return _runs[key][["t"] + self.mechanism.motion_columns()].copy()
+
+
+def with_dynamics(scenario: Scenario, prescribed: Mechanism) -> Mechanism:
+    """`prescribed` (built with the scene's prescribed drives, or for a
+    torque-driven or free crank a stand-in law at its initial angle) as
+    the scene asks: no prescribed crank when the scene has none, the torque
+    laws and initial values, the assembly pose of the stand-in at t = 0
+    (it picks the branch), and the integrated motion."""
+    pose = {name: BodyPose(p.theta, p.x, p.y) for name, p in default_pose(prescribed, 0.0).items()}
+    motion = IntegratedMotion(scenario.source)
+    mechanism = dataclasses.replace(
+        prescribed, drive=prescribed.drive if scenario.drive is not None else None,
+        extra_drives=prescribed.extra_drives if scenario.drive is not None else (),
+        torque_drives=scenario.torque_laws, initial_values=scenario.initial_values, assembly_pose=pose,
+        motion=motion)
+    # A free crank has no effort: its T12 is not a signal (a torque law's is the law).
+    efforts = set(mechanism.reaction_columns())
+    signals = {name: raw for name, raw in mechanism.signal_map.items()
+               if not raw.endswith((".T", ".F")) or raw in efforts}
+    mechanism = dataclasses.replace(mechanism, signal_map=signals)
+    motion.mechanism = mechanism
+    return mechanism

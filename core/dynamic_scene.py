@@ -11,27 +11,20 @@ step_rate`), the assembly branch — reads the integrated motion.
 from __future__ import annotations
 
 import dataclasses
-from collections import OrderedDict
 
 import numpy as np
 import pandas as pd
 
-from .dynamics import ForwardDynamics
+from .dynamics import raw_dynamics
 from .mechanism import BodyPose, Mechanism
 from .planar_solver import default_pose
 from .planar_constraints import MechanismError
 from .scenario import Scenario, ScenarioError
 
-#: Integrated runs kept per process (a scene's samples and the step rule's
-#: dense grid are each asked for by every adapter's default settings).
-CACHED_RUNS = 8
-_runs: OrderedDict = OrderedDict()
-
-
 class IntegratedMotion:
     """A torque-driven or free mechanism's `motion`: the raw motion columns
     of the forward-dynamics reference from its initial values at t = 0
-    (instants from 0 on), the last few runs kept. A run the reference
+    (instants from 0 on; `raw_dynamics` keeps the last few runs). A run the reference
     refuses (too long, a toggle of the stated joints) is bad input of the
     scenario file `source`, whoever asked for the motion."""
 
@@ -40,17 +33,12 @@ class IntegratedMotion:
 
     def __call__(self, t: np.ndarray) -> pd.DataFrame:
         t = np.asarray(t, dtype=float)
-        # The pose picks the branch but takes no part in a Mechanism's equality.
-        key = (self.mechanism, tuple(sorted(self.mechanism.assembly_pose.items())), t.tobytes())
-        if key not in _runs:
-            try:
-                _runs[key] = ForwardDynamics(self.mechanism, t0=0.0).solve(t).frame
-            except MechanismError as exc:
-                raise ScenarioError(self.source, exc.key, exc.reason) from None
-            while len(_runs) > CACHED_RUNS:
-                _runs.popitem(last=False)
-        _runs.move_to_end(key)
-        return _runs[key][["t"] + self.mechanism.motion_columns()].copy()
+        start = 0 if t.size and t[0] == 0.0 else 1     # the run starts at t = 0 whatever is asked
+        try:
+            frame = raw_dynamics(self.mechanism, np.concatenate([[0.0], t])[1 - start:]).frame
+        except MechanismError as exc:
+            raise ScenarioError(self.source, exc.key, exc.reason) from None
+        return frame[["t"] + self.mechanism.motion_columns()].iloc[start:].reset_index(drop=True)
 
 
 def with_dynamics(scenario: Scenario, prescribed: Mechanism) -> Mechanism:

@@ -36,7 +36,9 @@ over the mechanism's size).
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -356,10 +358,28 @@ class ForwardDynamics:
         return frame, {k: v for k, v in missing.items() if k in names}, measured
 
 
+#: Forward-dynamics runs kept per process, the oldest dropped past this many
+#: bytes of frames: one scene's run is asked for by the reference adapter
+#: and the report's drawing, and on the step rule's grid by every engine's
+#: settings, limits check and audit (a 20,001-instant grid of a four-bar is
+#: about 5 MB).
+CACHED_BYTES = 256 * 2**20
+_runs: OrderedDict = OrderedDict()
+
+
 def raw_dynamics(mech: Mechanism, t: np.ndarray, initial: Sequence[InitialValue] | None = None,
                  pose: Mapping[str, BodyPose] | None = None, rtol: float = RTOL,
                  method: str = "DOP853") -> DynamicSolution:
     """The forward-dynamics reference's raw columns of `mech` at instants t,
-    from the stated initial values (the mechanism's own unless given) at t[0]."""
+    from the stated initial values (the mechanism's own unless given) at t[0];
+    the last runs are kept, up to CACHED_BYTES (each caller gets its own frame)."""
     t = np.asarray(t, dtype=float)
-    return ForwardDynamics(mech, initial, pose, float(t[0]) if t.size else 0.0).solve(t, rtol, method)
+    # The pose picks the branch but takes no part in a Mechanism's equality.
+    key = (mech, tuple(sorted((pose or mech.assembly_pose).items())), tuple(initial or ()), t.tobytes(), rtol,
+           method)
+    if key not in _runs:
+        _runs[key] = ForwardDynamics(mech, initial, pose, float(t[0]) if t.size else 0.0).solve(t, rtol, method)
+        while len(_runs) > 1 and sum(run.frame.memory_usage().sum() for run in _runs.values()) > CACHED_BYTES:
+            _runs.popitem(last=False)
+    _runs.move_to_end(key)
+    return dataclasses.replace(_runs[key], frame=_runs[key].frame.copy())

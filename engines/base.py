@@ -84,7 +84,10 @@ def planned_motion(mechanism: Mechanism) -> Mechanism:
             frames[key] = reference_motion(mechanism, t, RATE_RTOL)
         return frames[key]
 
-    return dataclasses.replace(mechanism, motion=motion)
+    # One planned mechanism per mechanism, so that every engine's settings,
+    # limits check and audit of one run read one integration per grid and
+    # one step rate (`Mechanism.derive`), not one each.
+    return mechanism.derive(("planned_motion",), lambda: dataclasses.replace(mechanism, motion=motion))
 
 
 def default_step(mechanism: Mechanism, times: np.ndarray, rad_per_step: float = 0.01,

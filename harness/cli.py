@@ -171,11 +171,24 @@ def _engines(names: list[str] | None) -> list[str]:
     return engines
 
 
-def _scenarios(names: list[str] | None, skip_hard: bool):
+#: The tag of built-ins that a run of all built-ins leaves out unless asked
+#: (`mechval run --long`): scenes whose engine runs alone would take most
+#: of the main job's minute (fourbar-long-run: 509 revolutions, about 85 s
+#: of engine CPU time, tests/bench/run_bench.py).
+LONG = "long"
+
+
+def _scenarios(names: list[str] | None, skip_hard: bool, long: bool = True):
     if names:
         return [_load(n) for n in names]
     loaded = [_load(n) for n in builtin_names()]
-    return [s for s in loaded if not (skip_hard and "hard" in s.tags)]
+    return [s for s in loaded if not (skip_hard and "hard" in s.tags) and (long or LONG not in s.tags)]
+
+
+def _left_out(names: list[str] | None, scenarios: list[Scenario]) -> list[str]:
+    """The built-ins a run of all built-ins left out."""
+    ran = {s.name for s in scenarios}
+    return [] if names else [n for n in builtin_names() if n not in ran]
 
 
 def default_out_dir(kind: str = "run") -> Path:
@@ -233,13 +246,15 @@ class RunReport:
     outcomes: list[Outcome]
     records: pd.DataFrame
     folder: Path
+    #: Built-ins a run of all of them left out (--skip-hard, no --long).
+    left_out: list[str]
 
 
 def run_and_report(args, phase: Callable[[str], ContextManager] = _untimed) -> RunReport:
     """`mechval run`'s work, phase by phase (tests/bench/run_bench.py passes
     `phase` to time each one)."""
     with phase("load scenarios and engines"):
-        scenarios = _scenarios(args.scenarios, args.skip_hard)
+        scenarios = _scenarios(args.scenarios, args.skip_hard, args.long)
         engines = _engines(args.engine)
     with phase("plan runs: settings, limits"):
         tasks = tasks_for(scenarios, engines)
@@ -276,12 +291,15 @@ def run_and_report(args, phase: Callable[[str], ContextManager] = _untimed) -> R
             files = {"cost.csv": lambda path: write_table(table, path)}
     with phase("report: page and files"):
         write_report(out, scenarios, references, outcomes, records, sections, files)
-    return RunReport(scenarios, references, outcomes, records, out)
+    return RunReport(scenarios, references, outcomes, records, out, _left_out(args.scenarios, scenarios))
 
 
 def cmd_run(args) -> int:
     run = run_and_report(args)
     print(summary_markdown(run.records, run.scenarios, provenance(), run.references))
+    if run.left_out:
+        print(f"left out: {', '.join(run.left_out)} (built-ins tagged 'long', run with --long, or 'hard', left out "
+              f"by --skip-hard; naming a scene runs it)")
     print(f"report: {run.folder / 'index.html'}")
     return 0 if passed(run.records) else 1
 
@@ -357,6 +375,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=_positive, default=900.0, help="seconds before an engine run is killed")
     p.add_argument("--skip-hard", action="store_true",
                    help="leave out the built-in scenarios tagged 'hard' (long runs, singular neighbourhoods)")
+    p.add_argument("--long", action="store_true",
+                   help="also run the built-ins tagged 'long' (fourbar-long-run: 509 revolutions, about a minute "
+                        "and a half of engine CPU time), which a run of all built-ins leaves out by default")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--cost", action="store_true", help="add the work-precision sweep (as `mechval cost`; slow)")
     _add_limits(p)

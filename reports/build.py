@@ -225,7 +225,7 @@ def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Out
         description=scenario.description, tolerance=dict(scenario.tolerance.bounds),
         overrides=[note for engine in override_notes(scenario).values() for note in engine.values()],
         verdict=_verdict(mine),
-        drawing=plots.mechanism_figure(build_mechanism(scenario), scenario.time.end),
+        drawing=plots.mechanism_figure(build_mechanism(scenario), scenario.time.t),
         signals=plots.signal_data(reference, results, bounds, palette),
         energy=plots.energy_data(reference, results, palette),
         reference_method=reference_method(reference),

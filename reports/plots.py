@@ -262,13 +262,15 @@ def energy_data(reference: Signals, results: Mapping[str, Signals], palette: Map
     return {"measure": measure, "runs": drawn, "stream": stream.encoded()}
 
 
-def mechanism_figure(mech: Mechanism, t_end: float, instants: int = 4) -> dict:
+def mechanism_figure(mech: Mechanism, times: np.ndarray, instants: int = 4) -> dict:
     """The linkage to scale at a few instants (a Plotly figure): every body
     as the polygon of its joint points (closed for a ternary or larger
     link), ground pivots as triangles, guides as dashed lines, springs as
     dotted lines."""
-    t = np.linspace(0.0, t_end, instants)
-    motion = mech.motion(t)
+    # Instants of the run's own samples: a torque-driven or free scene's
+    # motion on them is the reference's run, already integrated.
+    rows = np.unique(np.linspace(0, len(times) - 1, instants).round().astype(int))
+    motion = mech.motion(np.asarray(times, dtype=float)).iloc[rows].reset_index(drop=True)
     traces = []
     for joint in mech.joints:
         if joint.body_i == GROUND and joint.kind == "revolute":
@@ -282,7 +284,8 @@ def mechanism_figure(mech: Mechanism, t_end: float, instants: int = 4) -> dict:
                                mode="lines", line=dict(dash="dash", color="#999", width=1), showlegend=False,
                                hoverinfo="skip"))
     shades = ["#440154", "#31688e", "#35b779", "#b5de2b", "#fde725"]
-    for k in range(instants):
+    t = motion["t"].to_numpy()
+    for k in range(len(rows)):
         name = f"t = {t[k]:.3g} s"
         for body in mech.bodies:
             points = [point_position(motion, body.name, j.point_j if j.body_j == body.name else j.point_i)

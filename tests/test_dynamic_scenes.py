@@ -219,6 +219,7 @@ def test_a_run_too_long_to_integrate_is_refused_naming_time_end(monkeypatch):
     from mechval.adapter import Unrepresentable
     from mechval.reference import ReferenceAdapter
     monkeypatch.setattr(dynamics, "MAX_EVALUATIONS", 50)
+    monkeypatch.setattr(dynamics, "_runs", type(dynamics._runs)())     # integrate afresh, not from a kept run
     scenario = builtin_scenario("slider-crank-motor")
     with pytest.raises(Unrepresentable) as caught:
         ReferenceAdapter().run(build_mechanism(scenario), scenario.time.t, {})

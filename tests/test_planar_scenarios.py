@@ -323,7 +323,7 @@ def test_redundant_constraints_are_a_feature_an_engine_must_declare(name):
 
 
 @pytest.mark.parametrize("name", ["watt-six-bar", "stephenson-six-bar", "jansen-leg", "slider-driven-slider-crank",
-                                  "andrews-squeezer"])
+                                  "andrews-squeezer", "andrews-squeezer-motor"])
 def test_the_report_draws_the_mechanism_to_scale(name):
     """The report's drawing (reports/plots.py) of a planar built-in: at each
     drawn instant every body is there, each body's points keep the
@@ -334,7 +334,7 @@ def test_the_report_draws_the_mechanism_to_scale(name):
     from mechval.reports.plots import mechanism_figure
     scenario = builtin_scenario(name)
     mech = build_mechanism(scenario)
-    figure = mechanism_figure(mech, scenario.time.end)
+    figure = mechanism_figure(mech, scenario.time.t)
     assert (figure["layout"]["yaxis"]["scaleanchor"], figure["layout"]["yaxis"]["scaleratio"]) == ("x", 1)
     scale = size(mech)
     instants = sorted({trace["legendgroup"] for trace in figure["data"] if "legendgroup" in trace})

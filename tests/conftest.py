@@ -29,7 +29,7 @@ CLOSED_FORM = [name for name in BUILTIN if builtin_scenario(name).mechanism != "
 #: and fails when the engine starts to run it, so that the note gets updated).
 CANNOT_RUN = {("exudyn", "planar-extra/parallelogram-double-fourbar"):
               "parallelogram-double-fourbar.toml: joint: exudyn: cannot run redundant constraints",
-              ("exudyn", "double-fourbar-falling"):
+              ("exudyn", "planar-extra/double-fourbar-falling"):
               "double-fourbar-falling.toml: joint: exudyn: cannot run redundant constraints"}
 
 

@@ -149,3 +149,18 @@ def test_only_redundant_scenes_have_resultant_signals():
     depend on it)."""
     for name in ("watt-six-bar", "five-bar-two-drives"):
         assert not any(s.endswith((".Rx", ".Ry", ".Rm")) for s in build_mechanism(builtin_scenario(name)).signal_map)
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("name, engine", [(REDUNDANT, "mujoco"), (REDUNDANT, "pybullet"),
+                                          ("planar-extra/double-fourbar-falling", "mujoco")])
+def test_engine_resultants_are_compared_and_meet_the_bounds(name, engine):
+    """Every moving body's resultant is a compared row (not missing) and
+    within the scene's bounds for the engine (PyBullet's, stated with its
+    figures in the parallelogram's file)."""
+    engine_or_skip(engine)
+    scenario = builtin_scenario(name)
+    records = compare(simulate_reference(scenario), simulate(scenario, engine),
+                      scenario.tolerance_for(engine), scenario.name, engine).set_index("signal")
+    rows = [f"{b.name}.{q}" for b in build_mechanism(scenario).bodies for q in ("Rx", "Ry", "Rm")]
+    assert (records.loc[rows, "verdict"] == "pass").all(), records.loc[rows, ["max_error", "bound"]].to_string()

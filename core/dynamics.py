@@ -348,11 +348,12 @@ class ForwardDynamics:
             table[1:, part] = solver._columns(out)
         self._check_partition(t, condition)
         undetermined[self.rows] = False
+        resultants = solver._resultants(undetermined, table, augmented)
         missing = solver._missing(undetermined, table, augmented, self.start.structure)
-        columns = {name: table[k] for k, name in enumerate(augmented)}
+        columns = {name: table[k] for k, name in enumerate(augmented)} | resultants
         for law in mech.torque_drives:
             columns[f"{law.name}.T"] = law.value(t)
-        names = ["t"] + mech.motion_columns() + mech.reaction_columns()
+        names = ["t"] + mech.motion_columns() + mech.reaction_columns() + list(resultants)
         measured = {"constraint_drift_max": float(drift.max()), "condition_max": float(condition.max())}
         frame = pd.DataFrame({name: columns[name] for name in names})
         return frame, {k: v for k, v in missing.items() if k in names}, measured

@@ -22,7 +22,9 @@ import numpy as np
 import pandas as pd
 
 from .mechanism import Body, BodyPose, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
-from .planar_solver import raw_planar
+from .planar_constraints import MechanismError
+from .planar_solver import raw_planar, redundant_constraints
+from .resultants import RESULTANT_SIGNALS
 from .scenario import Scenario
 
 BODY_SIGNALS = ("theta", "omega", "alpha")
@@ -62,6 +64,15 @@ def signal_map(scene: PlanarScene) -> dict[str, str]:
     return names
 
 
+def has_redundant_constraints(mechanism: Mechanism) -> bool:
+    """Whether the joints' Jacobian is rank-deficient at the assembly pose;
+    a pose that does not assemble is refused later, where it always was."""
+    try:
+        return bool(redundant_constraints(mechanism))
+    except MechanismError:
+        return False
+
+
 class SolvedMotion:
     """A planar mechanism's `motion`: the raw motion columns of its frames,
     from the general reference (the four kinds have closed forms instead)."""
@@ -86,4 +97,8 @@ def build_mechanism(scenario: Scenario) -> Mechanism:
         forces=scene.forces, assembly_pose=dict(scene.pose),
     )
     motion.mechanism = mechanism
+    if has_redundant_constraints(mechanism):
+        # Reactions not unique: each body's resultant is (docs/conventions.md).
+        mechanism.signal_map.update({f"{b.name}.{q}": f"{b.name}.{suffix}" for b in scene.bodies
+                                     for q, suffix in RESULTANT_SIGNALS.items()})
     return mechanism

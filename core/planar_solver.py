@@ -49,6 +49,7 @@ from .planar_forces import AppliedForces, mass_diagonal
 from .planar_linear import settled, solve_one
 from .planar_positions import Nodes, Scaling, Structure, assemble, march, mechanism_size, redundant_joint_rows
 from .planar_tree import Factor, Tree
+from .resultants import body_resultants
 
 #: Instants per batch: bounds memory and keeps a batch's arrays in cache
 #: (measured: 2^12–2^14 alike on the four-bar, 2^13 best on Andrews).
@@ -212,11 +213,13 @@ class PlanarSolver:
                 table[1:, part] = self._columns(out)
         finally:   # a refusal need not wait for the later batches
             pool.shutdown(cancel_futures=True)
+        resultants = self._resultants(undetermined, table, columns)
         missing = self._missing(undetermined, table, columns, found)
         facts = {"method": METHOD, "grubler": found.grubler, "mobility": found.mobility, "rank": found.rank,
                  "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
                  "continuation_nodes": len(nodes.t)}
-        return PlanarSolution(pd.DataFrame(table.T, columns=columns, copy=False), missing, found, facts, condition)
+        frame = pd.DataFrame(table.T, columns=columns, copy=False)
+        return PlanarSolution(frame.assign(**resultants), missing, found, facts, condition)
 
     def _columns(self, out: Mapping[str, np.ndarray]) -> np.ndarray:
         """Motion of every body frame (origin O = G − R·com) and reactions."""
@@ -253,6 +256,14 @@ class PlanarSolver:
             else:
                 names.append([f"{row.joint}.M"] if row.kind == "angle" else [f"{row.joint}.Fx", f"{row.joint}.Fy"])
         return names
+
+    def _resultants(self, undetermined: np.ndarray, table: np.ndarray, columns: list[str]) -> dict[str, np.ndarray]:
+        """Each body's resultant constraint load, from this particular λ
+        before `_missing` blanks the reactions that are not unique: the
+        resultant is unique all the same (`mechval.resultants`)."""
+        if not undetermined.any():
+            return {}
+        return body_resultants(self.mech, {name: table[k] for k, name in enumerate(columns)})
 
     def _missing(self, undetermined: np.ndarray, table: np.ndarray, columns: list[str],
                  found: Structure) -> dict[str, str]:

@@ -22,6 +22,7 @@ import pandas as pd
 from .adapter import RunInfo
 from .kinematics import point_motion, slide_axis, slide_motion
 from .mechanism import Mechanism
+from .resultants import body_resultants, resultant_columns, resultant_inputs
 
 COMMON_SIGNALS = (
     "t", "theta2", "omega2", "alpha2", "theta3", "omega3", "alpha3",
@@ -67,7 +68,8 @@ class SignalClasses(dict):
 PLANAR_CLASS = {"theta": "angle", "omega": "velocity", "alpha": "acceleration",
                 "x": "position", "y": "position", "vx": "velocity", "vy": "velocity",
                 "ax": "acceleration", "ay": "acceleration",
-                "Fx": "force", "Fy": "force", "N": "force", "M": "torque", "T": "torque", "F": "force"}
+                "Fx": "force", "Fy": "force", "N": "force", "M": "torque", "T": "torque", "F": "force",
+                "Rx": "force", "Ry": "force", "Rm": "torque"}
 
 #: Tolerance class of each signal (keys of a scenario's [tolerance] table).
 SIGNAL_CLASS = SignalClasses({
@@ -153,6 +155,7 @@ def canonical_signals(
     """
     raw, missing = with_slide_columns(mechanism, raw, dict(missing or {}))
     raw = with_com_columns(mechanism, raw)
+    raw, missing = with_resultant_columns(mechanism, raw, missing)
     columns = {"t": raw["t"].to_numpy()}
     reasons = {}
     for name in mechanism_signal_names(mechanism)[1:]:
@@ -198,6 +201,25 @@ def with_com_columns(mechanism: Mechanism, raw: pd.DataFrame) -> pd.DataFrame:
             G = point_motion(raw, body.name, body.com)
             extra.update({f"{body.name}.G.{q}": G[q] for q in ("x", "y", "vx", "vy", "ax", "ay")})
     return raw.assign(**extra) if extra else raw
+
+
+def with_resultant_columns(mechanism: Mechanism, raw: pd.DataFrame,
+                           missing: dict[str, str]) -> tuple[pd.DataFrame, dict[str, str]]:
+    """Add each body's resultant constraint load B.R.Fx, B.R.Fy, B.R.M
+    (`mechval.resultants`) when the signal map asks for them (redundant
+    constraints) and the raw frame has not got them already (the
+    reference adds them before it blanks the reactions that are not
+    unique). A reason for missing inputs carries over."""
+    wanted = resultant_columns(mechanism)
+    if not set(wanted) & set(mechanism.signal_map.values()) or set(wanted) <= set(raw.columns):
+        return raw, missing
+    inputs = resultant_inputs(mechanism)
+    if not set(inputs) <= set(raw.columns):
+        return raw, missing
+    reasons = [missing[c] for c in inputs if c in missing]
+    if reasons:
+        missing = {**missing, **{c: reasons[0] for c in wanted}}
+    return raw.assign(**body_resultants(mechanism, raw)), missing
 
 
 def write_folder_atomically(out: str | os.PathLike, fill) -> Path:

@@ -116,3 +116,51 @@ def test_engine_meets_the_tolerances_at_its_default_setting(name, engine):
                       scenario.tolerance_for(engine), scenario.name, engine)
     failed = records[records["verdict"] == "fail"]
     assert not records.empty and failed.empty, failed[["signal", "max_error", "bound", "reason"]].to_string()
+
+
+@pytest.mark.parametrize("name", [REDUNDANT, "planar-extra/double-fourbar-falling"])
+def test_redundant_scene_compares_each_bodys_unique_resultant(name):
+    """The pins' loads are not unique but each body's resultant of them is
+    (docs/conventions.md): the reference's B.Rx, B.Ry, B.Rm equal m·a_G − m·g
+    and izz·α from the body's own motion (Newton–Euler; gravity is the
+    only applied load) to 1e-10 of the largest resultant force (moments: of
+    that force times the mechanism's size), and they are signals, never
+    missing, while the pins stay missing."""
+    scenario = builtin_scenario(name)
+    reference = simulate_reference(scenario)
+    mech = build_mechanism(scenario)
+    gx, gy = mech.gravity
+    expected = {}
+    for b in mech.bodies:
+        expected[f"{b.name}.Rx"] = b.mass * (reference[f"{b.name}.ax"] - gx)
+        expected[f"{b.name}.Ry"] = b.mass * (reference[f"{b.name}.ay"] - gy)
+        expected[f"{b.name}.Rm"] = b.izz * reference[f"{b.name}.alpha"]
+    force = max(np.abs(v).max() for k, v in expected.items() if not k.endswith("Rm"))
+    for signal, values in expected.items():
+        scale = force * (size(mech) if signal.endswith("Rm") else 1.0)
+        error = np.abs(reference[signal] - values).max()
+        assert error <= 1e-10 * scale, f"{signal}: {error / scale:.3g}"
+        assert signal not in reference.missing
+    assert {f"{j.name}.Fx" for j in mech.joints} <= set(reference.missing)
+
+
+def test_only_redundant_scenes_have_resultant_signals():
+    """A scene whose reactions are unique keeps its signal set (baselines
+    depend on it)."""
+    for name in ("watt-six-bar", "five-bar-two-drives"):
+        assert not any(s.endswith((".Rx", ".Ry", ".Rm")) for s in build_mechanism(builtin_scenario(name)).signal_map)
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("name, engine", [(REDUNDANT, "mujoco"), (REDUNDANT, "pybullet"),
+                                          ("planar-extra/double-fourbar-falling", "mujoco")])
+def test_engine_resultants_are_compared_and_meet_the_bounds(name, engine):
+    """Every moving body's resultant is a compared row (not missing) and
+    within the scene's bounds for the engine (PyBullet's, stated with its
+    figures in the parallelogram's file)."""
+    engine_or_skip(engine)
+    scenario = builtin_scenario(name)
+    records = compare(simulate_reference(scenario), simulate(scenario, engine),
+                      scenario.tolerance_for(engine), scenario.name, engine).set_index("signal")
+    rows = [f"{b.name}.{q}" for b in build_mechanism(scenario).bodies for q in ("Rx", "Ry", "Rm")]
+    assert (records.loc[rows, "verdict"] == "pass").all(), records.loc[rows, ["max_error", "bound"]].to_string()

@@ -102,6 +102,14 @@ def test_andrews_file_starts_at_the_published_consistent_state():
     assert abs(raw["drive.T"].iloc[0] - A.mom) <= BOUND * A.mom
 
 
+#: PyBullet's moment resultants on the parallelogram (an engine finding):
+#: its reported pin loads break its own Newton–Euler balance I·α by up to
+#: 1.06e6 N·m on the driven crank c1 (relative 3.2e8 of its 3.3e-3 N·m
+#: peak; the O1.T spike) and 8.3e4 N·m on c3, which has no drive.
+PYBULLET_MOMENTS = ("PyBullet's reported pin loads on the redundant parallelogram break each crank's moment "
+                    "balance I·α by up to 1.06e6 N·m (c1.Rm relative 3.2e8, c3 8.3e4 N·m) at the default step")
+
+
 @pytest.mark.engine
 @pytest.mark.parametrize("engine", ENGINE_NAMES)
 @pytest.mark.parametrize("name", NEW)
@@ -115,6 +123,10 @@ def test_engine_meets_the_tolerances_at_its_default_setting(name, engine):
     records = compare(simulate(scenario, "reference"), simulate(scenario, engine),
                       scenario.tolerance_for(engine), scenario.name, engine)
     failed = records[records["verdict"] == "fail"]
+    if (engine, name) == ("pybullet", REDUNDANT):      # PYBULLET_MOMENTS: the finding, and nothing else
+        moments = {f"{b.name}.Rm" for b in build_mechanism(scenario).bodies}
+        assert 0 < len(failed) and set(failed["signal"]) <= moments, failed[["signal", "max_error"]].to_string()
+        return
     assert not records.empty and failed.empty, failed[["signal", "max_error", "bound", "reason"]].to_string()
 
 
@@ -152,8 +164,10 @@ def test_only_redundant_scenes_have_resultant_signals():
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("name, engine", [(REDUNDANT, "mujoco"), (REDUNDANT, "pybullet"),
-                                          ("planar-extra/double-fourbar-falling", "mujoco")])
+@pytest.mark.parametrize("name, engine", [
+    (REDUNDANT, "mujoco"),
+    pytest.param(REDUNDANT, "pybullet", marks=pytest.mark.xfail(reason=PYBULLET_MOMENTS, strict=True)),
+    ("planar-extra/double-fourbar-falling", "mujoco")])
 def test_engine_resultants_are_compared_and_meet_the_bounds(name, engine):
     """Every moving body's resultant is a compared row (not missing) and
     within the scene's bounds for the engine (PyBullet's, stated with its

@@ -16,8 +16,15 @@ followed through a run (the sequential part of `mechval.planar_solver`).
 3. **Continuation**: nodes marched from t0 to the last instant, each one
    Newton-solved from the Taylor predictor q + h·q̇ + ½h²·q̈ of the node
    before, the step adapted to keep that predictor within `DELTA_TARGET`
-   of the solution (so the branch is followed). Every requested instant is
-   then predicted by quintic Hermite interpolation between its two nodes
+   of the solution (so the branch is followed). A step is retried shorter
+   where its node, or the Newton-corrected midpoint of its Hermite
+   interpolant, has the Jacobian's determinant of the other sign (the
+   mirror branch: near a dead centre the two branches pass within
+   ~√(distance) of each other, so Newton converges to either; the true
+   path never changes sign without a singular Jacobian), or where that
+   midpoint lies further than the Taylor target from its interpolant (a
+   sharp turn stepped over). Every requested instant is then predicted by
+   quintic Hermite interpolation between its two nodes
    and corrected in one batch (`mechval.planar_solver`).
 
 Step sizes are measured scaled: lengths over the mechanism's size L,
@@ -261,6 +268,28 @@ def newton(c: Constraints, scaling: Scaling, q: np.ndarray, t: float) -> tuple[n
     return q, False
 
 
+def orientation(c: Constraints, scaling: Scaling, q: np.ndarray) -> float:
+    """The sign of the (scaled) Jacobian's determinant at q (1, n), which
+    tells an assembly branch from its mirror; 0 where Φq is not square (a
+    redundant mechanism: no determinant to compare)."""
+    return float(np.linalg.slogdet(scaling.jacobian(c.jacobian(q)[0]))[0]) if c.m == c.n else 0.0
+
+
+def interpolates(c: Constraints, scaling: Scaling, step: Nodes, sign: float, delta_target: float) -> bool:
+    """Does the two-node `step` hold the branch between its nodes? Its
+    Hermite interpolant at the midpoint, Newton-corrected, must stay on the
+    branch (same orientation) and within `delta_target` (scaled): ~δ² where
+    the motion is smooth (quintic against the nodes' quadratic Taylor
+    error δ), but of the order of the branches' distance where both nodes
+    lie on the branch and the step passes over a dead centre's closest
+    approach, the crank's sharp turn between them (the batch's predictor
+    would miss it and Newton would not settle there)."""
+    t_mid = np.array([0.5 * (step.t[0] + step.t[1])])
+    guess = step.predict(t_mid)
+    mid, ok = newton(c, scaling, guess, float(t_mid[0]))
+    return ok and scaling.step(mid - guess)[0] <= delta_target and orientation(c, scaling, mid) == sign
+
+
 def march(c: Constraints, scaling: Scaling, q0: np.ndarray, t0: float, t_end: float,
           rates: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
           delta_target: float = DELTA_TARGET) -> Nodes:
@@ -279,6 +308,7 @@ def march(c: Constraints, scaling: Scaling, q0: np.ndarray, t0: float, t_end: fl
     vmax, amax = speed(v, a)
     h = min(span, 0.1 / vmax if vmax > 0 else np.inf, np.sqrt(0.2 / amax) if amax > 0 else np.inf)
     h_min = 1e-10 * span
+    sign = orientation(c, scaling, q)
     while t < t_end:
         h = min(h, t_end - t)
         if t_end - (t + h) < 1e-9 * h:   # land on t_end exactly
@@ -286,15 +316,19 @@ def march(c: Constraints, scaling: Scaling, q0: np.ndarray, t0: float, t_end: fl
         predicted = q + h * v + 0.5 * h * h * a
         solved, ok = newton(c, scaling, predicted, t + h)
         delta = float(scaling.step(solved - predicted)[0]) if ok else np.inf
-        if not ok or delta > DELTA_MAX:
+        ok = ok and delta <= DELTA_MAX and orientation(c, scaling, solved) == sign
+        if ok:
+            t_new = t + h if t_end - (t + h) > 1e-12 * span else t_end
+            v_new, a_new = rates(solved, np.array([t_new]))
+            step = Nodes(np.array([t, t_new]), np.vstack([q, solved]), np.vstack([v, v_new]), np.vstack([a, a_new]))
+            ok = interpolates(c, scaling, step, sign, delta_target)
+        if not ok:
             h /= 4
             if h < h_min:
                 raise MechanismError("time", f"the loop cannot close, or locks, just after t = {t:.6g} s: Newton "
                                              f"from the previous instant fails for every step down to {h_min:.3g} s")
             continue
-        t = t + h if t_end - (t + h) > 1e-12 * span else t_end
-        q = solved
-        v, a = rates(q, np.array([t]))
+        t, q, v, a = t_new, solved, v_new, a_new
         ts.append(t), qs.append(q[0]), vs.append(v[0]), as_.append(a[0])
         h *= min(2.0, max(0.3, 0.9 * (delta_target / max(delta, 1e-300)) ** (1 / 3)))
     return Nodes(np.array(ts), np.array(qs), np.array(vs), np.array(as_))

@@ -140,6 +140,12 @@ class PlanarSolver:
         and γ there: they differ by ~eps)."""
         scaling = self.scaling
         previous = np.full(len(q), np.inf)
+        # an instant once settled stays so: at the residual's noise floor
+        # (cond·eps, above the rounding floor where the condition is some
+        # hundreds, as near a dead centre) its steps wander by a factor of
+        # a few, so a batch of such instants would seldom be judged settled
+        # all in the same iteration
+        done = np.zeros(len(q), dtype=bool)
         floor = scaling.tolerance(q)     # the Newton steps change q far less than its rounding scale
         for it in range(2 * CHORD_ITERATIONS):
             if it:
@@ -149,7 +155,7 @@ class PlanarSolver:
             dq = -factor.solve(self.c.residual(q, t, f))
             q += dq
             size = scaling.step(dq)
-            done = settled(size, previous, floor)
+            done |= settled(size, previous, floor)
             if done.all():
                 return q, f
             previous = size

@@ -173,6 +173,7 @@ class ForwardDynamics:
         factor_of = factor_of or self.solver._factor
         c, scaling = self.solver.c, self.solver.scaling
         previous = np.full(len(q), np.inf)
+        done = np.zeros(len(q), dtype=bool)   # settled stays settled (as `PlanarSolver._correct`)
         for _ in range(NEWTON_ITERATIONS):
             f = c.frames(q)
             factor = factor_of(q, f, t)
@@ -181,7 +182,7 @@ class ForwardDynamics:
             dq = -factor.solve(residual)
             q = q + dq
             size = scaling.step(dq)
-            done = settled(size, previous, scaling.tolerance(q))
+            done |= settled(size, previous, scaling.tolerance(q))
             if done.all():
                 return q, f, factor
             previous = size

@@ -134,7 +134,7 @@ def consistent_state(mech: Mechanism, values: Sequence[InitialValue], pose: Mapp
     t = np.array([t0])
     f = c.frames(q[None])
     tree = Tree.of(c)
-    factor = Factor(c, tree, f, c.jacobian(q[None], f, tuple(int(r) for r in tree.cut)), scaling.row,
+    factor = Factor(c, tree, f, c.jacobian(q[None], f, tuple(int(r) for r in tree.cut), instants_last=True), scaling.row,
                     scaling.column, t)
     condition = float(factor.condition()[0])
     if condition > SINGULAR_CONDITION:

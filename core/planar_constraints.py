@@ -170,6 +170,7 @@ class Constraints:
         self.d_row = np.array([self.drive_rows[d.name] for d in drives], dtype=int)
         slide = np.array([mech.joint(d.joint).kind == "prismatic" for d in drives], dtype=bool)
         self.d_rev, self.d_pri, self.d_slide = np.flatnonzero(~slide), np.flatnonzero(slide), slide
+        self.d_pri_column = np.searchsorted(self.pri, self.d_joint[self.d_pri])   # among the prismatic joints
         self.laws = tuple(d.law for d in drives)
         self._sparsity()
 
@@ -185,7 +186,12 @@ class Constraints:
         rxj, ryj = cj * self.sj[:, 0] - sj_ * self.sj[:, 1], sj_ * self.sj[:, 0] + cj * self.sj[:, 1]
         dx = qa[:, 3 * self.bj] + rxj - qa[:, 3 * self.bi] - rxi
         dy = qa[:, 3 * self.bj + 1] + ryj - qa[:, 3 * self.bi + 1] - ryi
-        ux, uy = ci * self.ax[:, 0] - si_ * self.ax[:, 1], si_ * self.ax[:, 0] + ci * self.ax[:, 1]
+        # the axis only matters at prismatic joints: zero elsewhere, which
+        # spares an all-revolute mechanism its arithmetic
+        ux, uy = np.zeros_like(dx), np.zeros_like(dx)
+        if self.pri.size:
+            cp, sp, axis = ci[:, self.pri], si_[:, self.pri], self.ax[self.pri]
+            ux[:, self.pri], uy[:, self.pri] = cp * axis[:, 0] - sp * axis[:, 1], sp * axis[:, 0] + cp * axis[:, 1]
         return dict(th=th, cos=c, sin=s, rxi=rxi, ryi=ryi, rxj=rxj, ryj=ryj, dx=dx, dy=dy, ux=ux, uy=uy)
 
     def _laws(self, t: np.ndarray, which: str) -> np.ndarray:
@@ -201,8 +207,10 @@ class Constraints:
         relative = f["th"][:, self.bj] - f["th"][:, self.bi]
         phi[:, self.first[pri]] = relative[:, pri] - self.held[pri]
         phi[:, self.first[pri] + 1] = -f["uy"][:, pri] * f["dx"][:, pri] + f["ux"][:, pri] * f["dy"][:, pri]
-        along = f["ux"] * f["dx"] + f["uy"] * f["dy"]
-        value = np.where(self.d_slide, along[:, self.d_joint], relative[:, self.d_joint])
+        value = relative[:, self.d_joint]
+        if self.d_pri.size:
+            slide = self.d_joint[self.d_pri]
+            value[:, self.d_pri] = f["ux"][:, slide] * f["dx"][:, slide] + f["uy"][:, slide] * f["dy"][:, slide]
         phi[:, self.d_row] = value - self._laws(t, "angle")
         return phi
 
@@ -254,25 +262,34 @@ class Constraints:
             self._subsets[rows] = (template, tuple(groups))
         return self._subsets[rows]
 
-    def jacobian(self, q: np.ndarray, f: dict | None = None, rows: tuple[int, ...] | None = None) -> np.ndarray:
-        """Φq, shape (instants, m, n), or only the given rows. For a row
+    def jacobian(self, q: np.ndarray, f: dict | None = None, rows: tuple[int, ...] | None = None,
+                 instants_last: bool = False) -> np.ndarray:
+        """Φq, shape (instants, m, n), or only the given rows; (m, n,
+        instants) with `instants_last`, the tree elimination's layout. For a row
         w·(Pj − Pi) the θ entries are w·(ẑ × rj) and −w·(ẑ × ri) + ∂w/∂θi·d,
         the last −u·d for w = n and n·d for w = u (w turns with body_i)."""
         f = f or self.frames(q)
         ux, uy, dx, dy = f["ux"], f["uy"], f["dx"], f["dy"]
         nx, ny = -uy, ux
         arm = lambda wx, wy, rx, ry: wy * rx - wx * ry       # w·(ẑ × r)
-        values = dict(rxj=f["rxj"], ryj=f["ryj"], rxi=f["rxi"], ryi=f["ryi"], nx=nx, ny=ny, ux=ux, uy=uy,
-                      n_arm_j=arm(nx, ny, f["rxj"], f["ryj"]), u_arm_j=arm(ux, uy, f["rxj"], f["ryj"]),
-                      n_turn_i=-arm(nx, ny, f["rxi"], f["ryi"]) - (ux * dx + uy * dy),
-                      u_turn_i=-arm(ux, uy, f["rxi"], f["ryi"]) + (nx * dx + ny * dy))
+        values = dict(rxj=lambda: f["rxj"], ryj=lambda: f["ryj"], rxi=lambda: f["rxi"], ryi=lambda: f["ryi"],
+                      nx=lambda: nx, ny=lambda: ny, ux=lambda: ux, uy=lambda: uy,
+                      n_arm_j=lambda: arm(nx, ny, f["rxj"], f["ryj"]), u_arm_j=lambda: arm(ux, uy, f["rxj"], f["ryj"]),
+                      n_turn_i=lambda: -arm(nx, ny, f["rxi"], f["ryi"]) - (ux * dx + uy * dy),
+                      u_turn_i=lambda: -arm(ux, uy, f["rxi"], f["ryi"]) + (nx * dx + ny * dy))
         template, groups = (self._template, self._groups) if rows is None else self._subset(rows)
         count = len(template) // self.n
-        J = np.empty((len(q), count * self.n))
-        J[:] = template
+        J = np.empty((count * self.n, len(q)) if instants_last else (len(q), count * self.n))
+        J[:] = template[:, None] if instants_last else template
+        computed: dict[str, np.ndarray] = {}     # only the quantities these rows use
         for flat, key, joints, sign in groups:
-            J[:, flat] = sign * values[key][:, joints]
-        return J.reshape(len(q), count, self.n)
+            if key not in computed:
+                computed[key] = values[key]()
+            if instants_last:
+                J[flat] = (sign * computed[key][:, joints]).T
+            else:
+                J[:, flat] = sign * computed[key][:, joints]
+        return J.reshape(count, self.n, len(q)) if instants_last else J.reshape(len(q), count, self.n)
 
     def velocity_rhs(self, t: np.ndarray) -> np.ndarray:
         """−Φt, shape (instants, m): the drives' rates φ̇(t)."""
@@ -294,21 +311,23 @@ class Constraints:
         wi, wj = w[:, self.bi], w[:, self.bj]
         cx = wj * wj * f["rxj"] - wi * wi * f["rxi"]
         cy = wj * wj * f["ryj"] - wi * wi * f["ryi"]
-        ddx = va[:, 3 * self.bj] - wj * f["ryj"] - va[:, 3 * self.bi] + wi * f["ryi"]
-        ddy = va[:, 3 * self.bj + 1] + wj * f["rxj"] - va[:, 3 * self.bi + 1] - wi * f["rxi"]
-        ux, uy, dx, dy = f["ux"], f["uy"], f["dx"], f["dy"]
-        u_d, n_d = ux * dx + uy * dy, -uy * dx + ux * dy
-        u_dd, n_dd = ux * ddx + uy * ddy, -uy * ddx + ux * ddy
-        u_c, n_c = ux * cx + uy * cy, -uy * cx + ux * cy
         g = np.zeros((len(q), self.m))
         rev, pri = self.rev, self.pri
         g[:, self.first[rev]], g[:, self.first[rev] + 1] = cx[:, rev], cy[:, rev]
-        normal = wi * wi * n_d + 2 * wi * u_dd + n_c
-        g[:, self.first[pri] + 1] = normal[:, pri]
         g[:, self.d_row] = self._laws(t, "acceleration")
+        if not pri.size:
+            return g
+        # the slide terms, at prismatic joints only (column k: joint pri[k])
+        ddx = va[:, 3 * self.bj] - wj * f["ryj"] - va[:, 3 * self.bi] + wi * f["ryi"]
+        ddy = va[:, 3 * self.bj + 1] + wj * f["rxj"] - va[:, 3 * self.bi + 1] - wi * f["rxi"]
+        ux, uy, dx, dy = f["ux"][:, pri], f["uy"][:, pri], f["dx"][:, pri], f["dy"][:, pri]
+        wi, cx, cy, ddx, ddy = wi[:, pri], cx[:, pri], cy[:, pri], ddx[:, pri], ddy[:, pri]
+        u_d, n_d = ux * dx + uy * dy, -uy * dx + ux * dy
+        u_dd, n_dd = ux * ddx + uy * ddy, -uy * ddx + ux * ddy
+        u_c, n_c = ux * cx + uy * cy, -uy * cx + ux * cy
+        g[:, self.first[pri] + 1] = wi * wi * n_d + 2 * wi * u_dd + n_c
         along = wi * wi * u_d - 2 * wi * n_dd + u_c
-        dp = self.d_joint[self.d_pri]
-        g[:, self.d_row[self.d_pri]] += along[:, dp]
+        g[:, self.d_row[self.d_pri]] += along[:, self.d_pri_column]
         return g
 
     # -- scaling -------------------------------------------------------------------------------

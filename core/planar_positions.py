@@ -40,7 +40,7 @@ import numpy as np
 
 from .mechanism import GROUND, BodyPose, Mechanism
 from .planar_constraints import Constraints, MechanismError
-from .planar_linear import ROUNDING, settled, solve_one
+from .planar_linear import ROUNDING, last_max, settled, solve_one
 
 #: Singular values below RANK_TOL·σmax of the scaled Jacobian count as zero
 #: (a structurally redundant row gives ~1e-16; a mechanism near a toggle
@@ -99,13 +99,13 @@ class Scaling:
 
     def step(self, dq: np.ndarray) -> np.ndarray:
         """Largest scaled component of each instant's step (instants,)."""
-        return np.abs(dq * self.inverse_column).max(axis=-1)
+        return last_max(np.abs(dq * self.inverse_column))
 
     def tolerance(self, q: np.ndarray) -> np.ndarray:
         """The fixed point: a scaled step within rounding of the instant's
         largest scaled coordinate (at least 1: lengths near L, angles near
         a radian; an angle of many turns carries a larger ulp)."""
-        return ROUNDING * np.maximum(np.abs(q * self.inverse_column).max(axis=-1), 1.0)
+        return ROUNDING * np.maximum(last_max(np.abs(q * self.inverse_column)), 1.0)
 
 
 def initial_guess(c: Constraints, pose: Mapping[str, BodyPose]) -> np.ndarray:

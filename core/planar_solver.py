@@ -51,9 +51,9 @@ from .planar_positions import Nodes, Scaling, Structure, assemble, march, mechan
 from .planar_tree import Factor, Tree
 from .resultants import body_resultants
 
-#: Instants per batch: bounds memory and keeps a batch's arrays in cache
-#: (measured: 2^12–2^14 alike on the four-bar, 2^13 best on Andrews).
-CHUNK = 1 << 13
+#: Instants per batch: bounds memory; fewer, longer array operations
+#: (tests/bench/planar_bench.py measures the batch sizes).
+CHUNK = 1 << 14
 #: `check`'s continuation aims at this Taylor error (scaled): nodes about
 #: twice as far apart as a solve's, enough to follow the branch.
 CHECK_DELTA = 1e-2
@@ -128,8 +128,8 @@ class PlanarSolver:
 
     def _factor(self, q: np.ndarray, f: dict, t: np.ndarray) -> Factor:
         """The tree elimination of Φq at q (frames f)."""
-        J_cut = self.c.jacobian(q, f, self.cut_rows)
-        return Factor(self.c, self.tree, f, J_cut, self.scaling.row, self.scaling.column, t)
+        Jt_cut = self.c.jacobian(q, f, self.cut_rows, instants_last=True)
+        return Factor(self.c, self.tree, f, Jt_cut, self.scaling.row, self.scaling.column, t)
 
     def _correct(self, q: np.ndarray, factor: Factor, t: np.ndarray, f: dict) -> tuple[np.ndarray, dict]:
         """Chord Newton iterations q ← q − B·Φ(q, t), B the elimination at
@@ -205,18 +205,24 @@ class PlanarSolver:
         condition = np.empty(len(t))
         undetermined = np.zeros(self.c.m, dtype=bool)
         parts = [slice(start, start + CHUNK) for start in range(0, len(t), CHUNK)]
+
+        def batch(part: slice) -> np.ndarray:     # each batch fills its own slice of the table
+            out = self._batch(t[part], nodes)
+            condition[part] = out["condition"]
+            if out["condition"].max() <= SINGULAR_CONDITION:
+                table[1:, part] = self._columns(out)
+            return out["undetermined"]
+
         # numpy releases the GIL in its array loops and LAPACK calls
         pool = ThreadPoolExecutor(max_workers=min(len(parts), os.cpu_count() or 1))
         try:
-            for part, out in zip(parts, pool.map(lambda part: self._batch(t[part], nodes), parts)):
-                if out["condition"].max() > SINGULAR_CONDITION:
-                    k = int(np.argmax(out["condition"] > SINGULAR_CONDITION))
+            for part, rows in zip(parts, pool.map(batch, parts)):
+                if condition[part].max() > SINGULAR_CONDITION:
+                    k = int(np.argmax(condition[part] > SINGULAR_CONDITION))
                     raise MechanismError("time", f"the Jacobian is singular at t = {t[part][k]:.6g} s (condition "
-                                                 f"{out['condition'][k]:.3g} > {SINGULAR_CONDITION:.0e}): a toggle "
+                                                 f"{condition[part][k]:.3g} > {SINGULAR_CONDITION:.0e}): a toggle "
                                                  "or dead-centre position")
-                condition[part] = out["condition"]
-                undetermined |= out["undetermined"]
-                table[1:, part] = self._columns(out)
+                undetermined |= rows
         finally:   # a refusal need not wait for the later batches
             pool.shutdown(cancel_futures=True)
         resultants = self._resultants(undetermined, table, columns)

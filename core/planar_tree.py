@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .planar_constraints import Constraints, MechanismError
-from .planar_linear import inverse, matvec
+from .planar_linear import inverse, matvec, norm_inf
 
 
 @dataclass(frozen=True)
@@ -83,106 +83,124 @@ class Tree:
 
 class Factor:
     """The elimination at one configuration per instant: displacement
-    coefficients D, the cut rows' Jacobian, and K's scaled (pseudo-)inverse."""
+    coefficients D, the cut rows' Jacobian, and K's scaled (pseudo-)inverse.
 
-    def __init__(self, c: Constraints, tree: Tree, frames: dict, J_cut: np.ndarray,
+    Inside, arrays keep the instants on the last axis (`mechval.planar_linear`):
+    the cut rows' Jacobian Jt (rows, n, instants), K and its inverse (k, k,
+    instants), every vector (entries, instants). Solves take arrays
+    indexed instants first, as every other caller holds them, and return
+    them so indexed: transposed views of instants-last storage, whose
+    columns the callers then read contiguously."""
+
+    def __init__(self, c: Constraints, tree: Tree, frames: dict, Jt_cut: np.ndarray,
                  row: np.ndarray, col: np.ndarray, t: np.ndarray):
-        self.c, self.tree, self.J_cut = c, tree, J_cut
-        self.row_cut, self.z_scale = row[tree.cut], col[tree.columns]
+        """`Jt_cut`: the cut rows' Jacobian, instants last
+        (`Constraints.jacobian(..., instants_last=True)`)."""
+        self.c, self.tree, self.Jt = c, tree, Jt_cut
+        self.row_cut, self.z_scale = row[tree.cut][:, None], col[tree.columns][:, None]
         count = len(t)
-        # D[(k, l)] = ∂ΔGk/∂Δθl as (x, y) arrays, built from the root down.
+        arm = {key: frames[key].T for key in ("rxi", "ryi", "rxj", "ryj")}      # (joints, instants)
+        # D[(k, l)] = ∂ΔGk/∂Δθl as (x, y) vectors, built from the root down.
         self.D: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         for k in tree.order:
             p, s = tree.joint[k], tree.sign[k]
-            ak = (frames["rxj"][:, p], frames["ryj"][:, p]) if s > 0 else (frames["rxi"][:, p], frames["ryi"][:, p])
-            self.D[(k, k)] = (ak[1], -ak[0])                                  # −ẑ × ak
+            ak = (arm["rxj"][p], arm["ryj"][p]) if s > 0 else (arm["rxi"][p], arm["ryi"][p])
+            self.D[(k, k)] = (ak[1].copy(), -ak[0])                            # −ẑ × ak
             parent = tree.parent[k]
             if parent >= 0:
-                ap = (frames["rxi"][:, p], frames["ryi"][:, p]) if s > 0 else (frames["rxj"][:, p], frames["ryj"][:, p])
+                ap = (arm["rxi"][p], arm["ryi"][p]) if s > 0 else (arm["rxj"][p], arm["ryj"][p])
                 dx, dy = self.D[(parent, parent)]
-                self.D[(k, parent)] = (dx - ap[1], dy + ap[0])                # + ẑ × aπ
+                self.D[(k, parent)] = (dx - ap[1], dy + ap[0])                 # + ẑ × aπ
                 for l in tree.ancestors[parent][1:]:
                     self.D[(k, l)] = self.D[(parent, l)]
-        nb = len(c.bodies)
-        K = J_cut[:, :, tree.columns].copy()
+        Jt = Jt_cut
+        K = Jt[:, tree.columns].copy()
         for (k, l), (dx, dy) in self.D.items():
-            K[:, :, l] += J_cut[:, :, 3 * k] * dx[:, None] + J_cut[:, :, 3 * k + 1] * dy[:, None]
+            K[:, l] += Jt[:, 3 * k] * dx + Jt[:, 3 * k + 1] * dy
         self.Ks = K * self.row_cut[:, None] * self.z_scale[None, :]
-        self.square = self.Ks.shape[1] == self.Ks.shape[2]
-        normal = self.Ks if self.square else self.Ks.transpose(0, 2, 1) @ self.Ks
+        self.square = self.Ks.shape[0] == self.Ks.shape[1]
+        normal = self.Ks if self.square else self._normal()
         try:
             self.Bs = inverse(normal)
         except np.linalg.LinAlgError:
-            k = int(np.flatnonzero(np.linalg.matrix_rank(normal) < normal.shape[-1])[0])
+            k = int(np.flatnonzero(np.linalg.matrix_rank(normal.transpose(2, 0, 1)) < normal.shape[0])[0])
             raise MechanismError("time", f"the Jacobian is singular at t = {t[k]:.6g} s (a toggle or dead-centre "
                                          "position: the drives cannot move the mechanism there)") from None
-        self.count, self.nb = count, nb
+        self.count = count
+
+    def _normal(self) -> np.ndarray:
+        """KsᵀKs, (k, k, instants)."""
+        return np.einsum("cit,cjt->ijt", self.Ks, self.Ks)
 
     # -- J·x = r --------------------------------------------------------------------------------
 
     def _reduced(self, rs: np.ndarray) -> np.ndarray:
-        """z from the scaled reduced right-hand side."""
+        """z from the scaled reduced right-hand side (entries, instants)."""
         if not self.square:
-            rs = matvec(self.Ks.transpose(0, 2, 1), rs)
+            rs = np.einsum("cit,ct->it", self.Ks, rs)
         return matvec(self.Bs, rs) * self.z_scale
 
     def solve(self, r: np.ndarray) -> np.ndarray:
-        """x with J·x = r (least squares, exact for a consistent system)."""
-        tree, J_cut = self.tree, self.J_cut
-        x = np.zeros((len(r), self.c.n))
+        """x (instants, n) with J·x = r (least squares, exact for a
+        consistent system), r (instants, m)."""
+        tree, Jt = self.tree, self.Jt
+        r = np.ascontiguousarray(r.T)
+        x = np.zeros((self.c.n, len(r[0])))
         Gr = {}
         for k in tree.order:                                  # ΔG with Δθ = 0, root down
             row = tree.tree_rows[k]
-            gx, gy = tree.sign[k] * r[:, row], tree.sign[k] * r[:, row + 1]
+            gx, gy = tree.sign[k] * r[row], tree.sign[k] * r[row + 1]
             parent = tree.parent[k]
             if parent >= 0:
                 gx, gy = gx + Gr[parent][0], gy + Gr[parent][1]
             Gr[k] = (gx, gy)
-        reduced = r[:, tree.cut].copy()
+        reduced = r[tree.cut]
         for k, (gx, gy) in Gr.items():
-            reduced -= J_cut[:, :, 3 * k] * gx[:, None] + J_cut[:, :, 3 * k + 1] * gy[:, None]
+            reduced -= Jt[:, 3 * k] * gx + Jt[:, 3 * k + 1] * gy
         z = self._reduced(reduced * self.row_cut)
-        x[:, tree.columns] = z
+        x[tree.columns] = z
         for k in tree.order:
             gx, gy = Gr[k]
             for l in tree.ancestors[k]:
                 dx, dy = self.D[(k, l)]
-                gx, gy = gx + dx * z[:, l], gy + dy * z[:, l]
-            x[:, 3 * k], x[:, 3 * k + 1] = gx, gy
-        return x
+                gx, gy = gx + dx * z[l], gy + dy * z[l]
+            x[3 * k], x[3 * k + 1] = gx, gy
+        return x.T
 
     # -- Jᵀ·λ = f -------------------------------------------------------------------------------
 
     def _tree_multipliers(self, f: np.ndarray, lam_cut: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """The tree joints' multipliers from the body balances, leaves up:
-        σk·μk − Σ children σc·μc = f_Gk − J_C,Gkᵀ·λ_C."""
-        tree, J_cut = self.tree, self.J_cut
+        σk·μk − Σ children σc·μc = f_Gk − J_C,Gkᵀ·λ_C (f (n, instants),
+        λ_C (cut rows, instants))."""
+        tree, Jt = self.tree, self.Jt
         mu: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         for k in reversed(tree.order):
-            gx = f[:, 3 * k] - np.einsum("tc,tc->t", J_cut[:, :, 3 * k], lam_cut)
-            gy = f[:, 3 * k + 1] - np.einsum("tc,tc->t", J_cut[:, :, 3 * k + 1], lam_cut)
+            gx = f[3 * k] - (Jt[:, 3 * k] * lam_cut).sum(axis=0)
+            gy = f[3 * k + 1] - (Jt[:, 3 * k + 1] * lam_cut).sum(axis=0)
             for child in tree.children[k]:
                 gx, gy = gx + tree.sign[child] * mu[child][0], gy + tree.sign[child] * mu[child][1]
             mu[k] = (tree.sign[k] * gx, tree.sign[k] * gy)
         return mu
 
     def solve_transposed(self, f: np.ndarray) -> np.ndarray:
-        """λ with Jᵀ·λ = f (minimum-norm in the cut rows, scaled, when
-        there are redundant rows)."""
+        """λ (instants, m) with Jᵀ·λ = f, f (instants, n) (minimum-norm in
+        the cut rows, scaled, when there are redundant rows)."""
         tree = self.tree
-        reduced = f[:, tree.columns].copy()
+        f = np.ascontiguousarray(f.T)
+        reduced = f[tree.columns]
         for (k, l), (dx, dy) in self.D.items():           # f̃θ = fθ + Dᵀ·f_G
-            reduced[:, l] += dx * f[:, 3 * k] + dy * f[:, 3 * k + 1]
+            reduced[l] += dx * f[3 * k] + dy * f[3 * k + 1]
         fs = reduced * self.z_scale
         if self.square:
-            lam_cut = matvec(self.Bs.transpose(0, 2, 1), fs) * self.row_cut
+            lam_cut = matvec(self.Bs.transpose(1, 0, 2), fs) * self.row_cut
         else:
             lam_cut = matvec(self.Ks, matvec(self.Bs, fs)) * self.row_cut
-        lam = np.zeros((len(f), self.c.m))
-        lam[:, tree.cut] = lam_cut
+        lam = np.zeros((self.c.m, f.shape[1]))
+        lam[tree.cut] = lam_cut
         for k, (mx, my) in self._tree_multipliers(f, lam_cut).items():
-            lam[:, tree.tree_rows[k]], lam[:, tree.tree_rows[k] + 1] = mx, my
-        return lam
+            lam[tree.tree_rows[k]], lam[tree.tree_rows[k] + 1] = mx, my
+        return lam.T
 
     # -- diagnostics ----------------------------------------------------------------------------
 
@@ -190,9 +208,8 @@ class Factor:
         """∞-norm condition number of the scaled K per instant (of KsᵀKs,
         square-rooted, with redundant rows)."""
         if self.square:
-            return np.abs(self.Ks).sum(axis=-1).max(axis=-1) * np.abs(self.Bs).sum(axis=-1).max(axis=-1)
-        normal = self.Ks.transpose(0, 2, 1) @ self.Ks
-        return np.sqrt(np.abs(normal).sum(axis=-1).max(axis=-1) * np.abs(self.Bs).sum(axis=-1).max(axis=-1))
+            return norm_inf(self.Ks) * norm_inf(self.Bs)
+        return np.sqrt(norm_inf(self._normal()) * norm_inf(self.Bs))
 
     def undetermined(self, row_scale: np.ndarray, tolerance: float) -> np.ndarray:
         """Per multiplier row, whether the null space of Jᵀ reaches it at
@@ -203,16 +220,16 @@ class Factor:
         if self.square:
             return np.zeros(self.c.m, dtype=bool)
         C = len(self.tree.cut)
-        projector = np.eye(C) - self.Ks @ self.Bs @ self.Ks.transpose(0, 2, 1)
+        projector = np.eye(C)[:, :, None] - np.einsum("cit,ijt,djt->cdt", self.Ks, self.Bs, self.Ks)
         found = np.zeros(self.c.m, dtype=bool)
-        zero = np.zeros((self.count, self.c.n))
+        zero = np.zeros((self.c.n, self.count))
         for j in range(C):
-            w = np.zeros((self.count, self.c.m))
-            lam_cut = projector[:, :, j] * self.row_cut
-            w[:, self.tree.cut] = lam_cut
+            w = np.zeros((self.c.m, self.count))
+            lam_cut = projector[:, j] * self.row_cut
+            w[self.tree.cut] = lam_cut
             for k, (mx, my) in self._tree_multipliers(zero, lam_cut).items():
-                w[:, self.tree.tree_rows[k]], w[:, self.tree.tree_rows[k] + 1] = mx, my
-            ws = np.abs(w / row_scale)
-            peak = ws.max(axis=-1, keepdims=True)
-            found |= ((ws > tolerance * peak) & (peak > tolerance)).any(axis=0)
+                w[self.tree.tree_rows[k]], w[self.tree.tree_rows[k] + 1] = mx, my
+            ws = np.abs(w / row_scale[:, None])
+            peak = ws.max(axis=0)
+            found |= ((ws > tolerance * peak) & (peak > tolerance)).any(axis=1)
         return found

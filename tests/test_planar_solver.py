@@ -493,8 +493,23 @@ def matmul_rows(A: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("size", [1, 2, 3, 4])
 def test_small_inverses(size):
+    """The stacked inverses, instants on the last axis (k, k, instants)."""
     from mechval.planar_linear import inverse
     rng = np.random.default_rng(size)
     A = rng.normal(size=(200, size, size)) + 2 * np.eye(size)
-    residual = np.abs(A @ inverse(A) - np.eye(size)).max(axis=(1, 2))
+    inverses = inverse(np.ascontiguousarray(A.transpose(1, 2, 0))).transpose(2, 0, 1)
+    residual = np.abs(A @ inverses - np.eye(size)).max(axis=(1, 2))
     assert (residual <= 4 * np.finfo(float).eps * np.linalg.cond(A)).all()
+
+
+@pytest.mark.parametrize("shape", [(3, 3), (7, 7), (4, 3)])
+def test_stacked_products_and_norms(shape):
+    """matvec and norm_inf per instant, instants last, against numpy's
+    per-matrix results."""
+    from mechval.planar_linear import matvec, norm_inf
+    rng = np.random.default_rng(sum(shape))
+    A, x = rng.normal(size=(50,) + shape), rng.normal(size=(50, shape[1]))
+    products = matvec(A.transpose(1, 2, 0), x.T).T
+    np.testing.assert_allclose(products, matmul_rows(A, x), rtol=0, atol=1e-14)
+    norms = norm_inf(A.transpose(1, 2, 0))
+    np.testing.assert_allclose(norms, [np.linalg.norm(a, np.inf) for a in A], rtol=1e-15)

@@ -45,7 +45,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 from scipy.integrate import solve_ivp
-from scipy.linalg import lu_factor, lu_solve, qr, solve_triangular
+from scipy.linalg import qr, solve_triangular
+from scipy.linalg.lapack import dgetrf, dgetrs
 
 from .initial_state import SINGULAR_CONDITION, consistent_state, coordinate_name, with_coordinates
 from .mechanism import BodyPose, InitialValue, Mechanism
@@ -114,12 +115,15 @@ class DenseFactor:
         Js = J * row[:, None] * col[None, :]
         self.row, self.col = row, col
         self.square = Js.shape[0] == Js.shape[1]
-        self.lu = lu_factor(Js, check_finite=False) if self.square else qr(Js, mode="economic", check_finite=False)
+        # LAPACK's getrf/getrs called directly: what scipy's lu_factor and
+        # lu_solve call, without their checks, which cost more than the
+        # solve itself at this size, thousands of times per run
+        self.lu = dgetrf(Js)[:2] if self.square else qr(Js, mode="economic", check_finite=False)
 
     def solve(self, r: np.ndarray) -> np.ndarray:
         rs = self.row * r[0]
         if self.square:
-            return (self.col * lu_solve(self.lu, rs, check_finite=False))[None]
+            return (self.col * dgetrs(*self.lu, rs)[0])[None]
         q, R = self.lu
         return (self.col * solve_triangular(R, q.T @ rs, check_finite=False))[None]
 

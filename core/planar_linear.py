@@ -66,7 +66,10 @@ def norm_inf(A: np.ndarray) -> np.ndarray:
 
 def last_max(x: np.ndarray) -> np.ndarray:
     """x.max(axis=-1) for (instants, k): a loop over the short last axis,
-    which numpy reduces slowly and runs element-wise operations along fast."""
+    which numpy reduces slowly and runs element-wise operations along fast
+    (for a few instants, numpy's reduction, with fewer calls)."""
+    if len(x) < 64:
+        return x.max(axis=-1)
     out = x[..., 0].copy()
     for j in range(1, x.shape[-1]):
         np.maximum(out, x[..., j], out=out)

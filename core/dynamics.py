@@ -68,12 +68,26 @@ NEWTON_ITERATIONS = 30
 MAX_EVALUATIONS = 30_000
 
 
+#: A rate beyond this (rad/s, m/s, or their derivatives) ends the run: its
+#: square would overflow float64 (about 1.8e308) in the next evaluation.
+RATE_LIMIT = 1e150
+
+
 class TooLong(Exception):
     """The integration reached MAX_EVALUATIONS at instant t."""
 
     def __init__(self, t: float):
         super().__init__(t)
         self.t = t
+
+
+class Overflows(TooLong):
+    """The state left float64's range at instant t (loads out of scale)."""
+
+
+class NoInertia(MechanismError):
+    """The mass matrix along the stated coordinates is singular: a refusal
+    of the scene itself, not a stop of the integration."""
 
 
 @dataclass(frozen=True)
@@ -210,7 +224,13 @@ class ForwardDynamics:
         Q = self.solver.forces.generalised(q, v, f) + self._torques(t)
         projected = np.einsum("tik,ti->tk", B, Q - mass * a0)
         inertia = np.einsum("tik,til->tkl", B, mass[None, :, None] * B)
-        zddot = np.linalg.solve(inertia, projected[..., None])[..., 0]
+        try:
+            zddot = np.linalg.solve(inertia, projected[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            k = int(np.argmin(np.abs(np.linalg.det(inertia))))
+            raise NoInertia("time", f"at t = {t[k]:.6g} s the bodies carry no inertia along the motion of "
+                                         f"{', '.join(self.joints)} (a singular mass matrix BᵀMB): massless links "
+                                         "or a degenerate geometry") from None
         a = a0 + np.einsum("tik,tk->ti", B, zddot)
         return v, a, zddot, Q, B
 
@@ -232,7 +252,14 @@ class ForwardDynamics:
         """dy/dt for y = (z, ż): the ODE that solve_ivp integrates."""
         if self.evaluations >= MAX_EVALUATIONS:
             raise TooLong(t)
-        return np.concatenate([y[self.k:], self._state(t, y)[3]])
+        try:
+            with np.errstate(over="raise", invalid="raise"):
+                rate = np.concatenate([y[self.k:], self._state(t, y)[3]])
+        except FloatingPointError:
+            raise Overflows(t) from None
+        if not np.all(np.abs(rate) < RATE_LIMIT):     # also NaN
+            raise Overflows(t)
+        return rate
 
     def tolerances(self, rtol: float, span: float) -> np.ndarray:
         """Absolute tolerances of (z, ż): rtol times each coordinate's scale
@@ -291,12 +318,18 @@ class ForwardDynamics:
         t_end = float(t[-1])
         clock = time.perf_counter()
         if t_end > start.t0:
-            atol = self.tolerances(rtol, t_end - start.t0)
-            self._restart()
             try:
+                atol = self.tolerances(rtol, t_end - start.t0)
+                self._restart()
                 sol = solve_ivp(self.rhs, (start.t0, t_end), y0, method=method, rtol=rtol, atol=atol,
                                 dense_output=True)
                 failure = "" if sol.status == 0 else f"the integrator stopped: {sol.message}"
+            except Overflows as error:
+                raise MechanismError("time", f"the motion leaves float64's range at t = {error.t:.6g} s "
+                                             f"(a rate beyond {RATE_LIMIT:.0e}): the scene's loads (gravity, torques, "
+                                             "springs) are out of scale for its masses and sizes") from None
+            except NoInertia as error:
+                raise MechanismError(error.key, error.reason) from None
             except TooLong as error:
                 share = (error.t - start.t0) / (t_end - start.t0)
                 raise MechanismError("time.end", f"the reference's integration reached only t = {error.t:.6g} s of "

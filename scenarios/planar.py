@@ -31,7 +31,7 @@ from mechval.planar_solver import MechanismError, PlanarSolver
 from mechval.scenario import Scenario, ScenarioError, TimeGrid, Tolerance
 
 from .dynamic import check_initial_state
-from .tables import Reader, engine_tables, tolerance
+from .tables import Reader, engine_tables, shown, tolerance
 
 TOP_KEYS = {"name", "mechanism", "description", "tags", "ground", "body", "joint", "drive", "torque",
             "initial", "force", "assembly", "effects", "time", "tolerance", "engines"}
@@ -78,10 +78,10 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
 
 def _pair(table: Reader, key: str, what: str = "[x, y] in m") -> tuple[float, float]:
     value = table.table.get(key)
-    if (not isinstance(value, list) or len(value) != 2
-            or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in value)):
-        table.fail(key, f"expected two finite numbers {what}, got {value!r}")
-    return float(value[0]), float(value[1])
+    if not isinstance(value, list) or len(value) != 2:
+        table.fail(key, f"expected two finite numbers {what}, got {shown(value)}")
+    # each entry checked as every number is (finite, not a bool, not too large)
+    return table.check_number(f"{key}[0]", value[0]), table.check_number(f"{key}[1]", value[1])
 
 
 def _name(table: Reader, key: str = "name") -> str:

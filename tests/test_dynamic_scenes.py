@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import functools
 import tomllib
+import warnings
 
 import numpy as np
+
 import pytest
 
 import andrews as A
@@ -190,6 +192,10 @@ REFUSED = {
         "drive.frequency", "must not be negative"),
     "initial angle beyond float64's resolution": (
         kind_drive("fourbar-falling", {"type": "free", "phi0": 1e9}), "drive.phi0", "float64 resolves it"),
+    # found by tests/test_fuzz.py's slow sweep: an integer of 401 digits
+    # overflowed the finiteness check with a traceback
+    "a point's coordinate of 401 digits": (
+        with_("jansen-leg", lambda d: d["ground"].update(Y=[-0.38, 10 ** 400])), "ground.Y[1]", "exceeds 1e+50"),
 }
 
 
@@ -211,6 +217,33 @@ def test_a_refusal_is_one_line_with_exit_status_2(tmp_path, capsys):
     assert status == 2 and not out and not (tmp_path / "out.csv").exists()
     assert err.splitlines() == [f"mechval: error: {path}: initial: " + err.split(": initial: ", 1)[1].rstrip("\n")]
     assert "too few initial values" in err
+
+
+#: Scenes that load but whose motion the reference cannot integrate: each
+#: refused at run time in one line naming `time`, never a traceback, a
+#: numpy warning or NaN. Both were found by tests/test_fuzz.py's slow sweep.
+INTEGRATION_REFUSED = {
+    "gravity of 9.2e18 m/s²": (
+        with_("fourbar-falling", lambda d: d["effects"].update(gravity=[0.0, 2 ** 63 - 1])),
+        "leaves float64's range"),
+    "a crank of 5e-324 m with no inertia": (
+        with_("slider-crank-motor", lambda d: (d["geometry"].update(crank=5e-324), d["mass"]["crank"].pop("izz"))),
+        "carry no inertia along the motion of O2"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(INTEGRATION_REFUSED))
+def test_a_motion_the_reference_cannot_integrate_is_refused_in_one_line(case, tmp_path, capsys):
+    import tomli_w
+    doc, reason = INTEGRATION_REFUSED[case]
+    path, csv = tmp_path / "bad.toml", tmp_path / "out.csv"
+    path.write_text(tomli_w.dumps(doc), encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        status = main(["simulate", str(path), "--engine", "reference", "--csv", str(csv)])
+    out, err = capsys.readouterr()
+    assert status == 2 and not out and not csv.exists()
+    assert len(err.splitlines()) == 1 and err.startswith(f"mechval: error: {path}: time: ") and reason in err, err
 
 
 def test_a_run_too_long_to_integrate_is_refused_naming_time_end(monkeypatch):

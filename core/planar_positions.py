@@ -55,6 +55,10 @@ DELTA_TARGET = 1e-3
 #: shorter step: it may have crossed to another branch.
 DELTA_MAX = 5e-2
 NEWTON_ITERATIONS = 30
+#: Continuation steps (accepted or retried) a run may take: a longer run,
+#: many minutes, is refused naming time.end (the seed four-bar's 509
+#: revolutions take about 17,000; tests/test_planar_solver.py).
+MAX_STEPS = 30_000
 #: A continuation node is only a predictor: Newton stops there once its
 #: scaled step is below this (quadratic convergence: the error left is ~1e-18).
 NODE_STEP = 1e-9
@@ -309,7 +313,14 @@ def march(c: Constraints, scaling: Scaling, q0: np.ndarray, t0: float, t_end: fl
     h = min(span, 0.1 / vmax if vmax > 0 else np.inf, np.sqrt(0.2 / amax) if amax > 0 else np.inf)
     h_min = 1e-10 * span
     sign = orientation(c, scaling, q)
+    steps = 0
     while t < t_end:
+        steps += 1
+        if steps > MAX_STEPS:
+            share = (t - t0) / span
+            raise MechanismError("time.end", f"the reference's continuation reached only t = {t:.6g} s of {t_end:g} s "
+                                             f"in {MAX_STEPS:,} steps, the limit (the run would need about "
+                                             f"{1 / max(share, 1e-300):.3g} times as many); shorten time.end")
         h = min(h, t_end - t)
         if t_end - (t + h) < 1e-9 * h:   # land on t_end exactly
             h = t_end - t

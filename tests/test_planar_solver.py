@@ -30,7 +30,8 @@ from mechval.health import joint_gaps, slide_rate
 from mechval.linkages import build_mechanism
 from mechval.kinematics import point_motion
 from mechval.mechanism import GROUND, BodyPose, BodyTorque, Drive, Joint, SpringDamper
-from mechval.planar_solver import MechanismError, raw_planar
+import mechval.planar_positions as positions
+from mechval.planar_solver import MechanismError, PlanarSolver, raw_planar
 from mechval.reference import raw_reference
 from scales import motion_scales, size
 
@@ -513,3 +514,23 @@ def test_stacked_products_and_norms(shape):
     np.testing.assert_allclose(products, matmul_rows(A, x), rtol=0, atol=1e-14)
     norms = norm_inf(A.transpose(1, 2, 0))
     np.testing.assert_allclose(norms, [np.linalg.norm(a, np.inf) for a in A], rtol=1e-15)
+
+
+def test_a_run_too_long_to_follow_is_refused_naming_time_end(monkeypatch):
+    """The continuation's step limit (planar_positions.MAX_STEPS) refuses a
+    run that would take many minutes; lowered here to 50 to be quick. The
+    seed four-bar's 509-revolution twin, the longest planar built-in, stays
+    within the real limit with room to spare (counted, not timed)."""
+    mech = build_mechanism(builtin_scenario("fourbar-seed"))
+    monkeypatch.setattr(positions, "MAX_STEPS", 50)
+    with pytest.raises(MechanismError) as caught:
+        PlanarSolver(mech).solve(np.linspace(0.0, 6.0, 101))
+    assert caught.value.key == "time.end" and "in 50 steps, the limit" in caught.value.reason
+
+
+@pytest.mark.slow
+def test_the_longest_planar_built_in_stays_within_the_step_limit(monkeypatch):
+    """The 509-revolution twin is followed within two thirds of the limit."""
+    monkeypatch.setattr(positions, "MAX_STEPS", positions.MAX_STEPS * 2 // 3)
+    scenario = builtin_scenario("planar-twins/fourbar-long-run")
+    assert PlanarSolver(build_mechanism(scenario)).solve(scenario.time.t).facts["continuation_nodes"] > 10_000

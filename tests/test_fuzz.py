@@ -128,7 +128,7 @@ def run_all(capfd, tmp_path, labelled_cases, engine: str = "reference", extra=()
 
 #: Planar files (`mechanism = "planar"`): the shipped twins of the built-ins,
 #: by path under scenarios/. The default run takes one of each kind; the
-#: 509-revolution twin (3.5 s to load) only in the slow run.
+#: 509-revolution twin (slow to follow) only in the slow run.
 PLANAR = sorted(f"planar-twins/{p.stem}" for p in (builtin_path("x").parent / "planar-twins").glob("*.toml"))
 PLANAR_DEFAULT = [f"planar-twins/{name}" for name in
                   ("fourbar-seed", "slider-crank-offset", "shaper-quick-return", "hand-pump")]

@@ -142,7 +142,9 @@ def test_mutated_builtins_are_simulated_or_refused(capfd, tmp_path, name):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", BUILTIN + PLANAR)
 def test_many_mutated_builtins(capfd, tmp_path, name):
-    run_all(capfd, tmp_path, cases(name, 250, seed=1))
+    # the general reference follows the 509-revolution twin for about a
+    # minute per case: 12 cases (as the default run takes of each), not 250
+    run_all(capfd, tmp_path, cases(name, 12 if name == "planar-twins/fourbar-long-run" else 250, seed=1))
 
 
 def engine_document(name: str, engine: str) -> dict:

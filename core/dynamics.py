@@ -73,15 +73,19 @@ MAX_EVALUATIONS = 30_000
 RATE_LIMIT = 1e150
 
 
-class TooLong(Exception):
-    """The integration reached MAX_EVALUATIONS at instant t."""
+class StoppedAt(Exception):
+    """The integration stops at instant t (the subclasses say why)."""
 
     def __init__(self, t: float):
         super().__init__(t)
         self.t = t
 
 
-class Overflows(TooLong):
+class TooLong(StoppedAt):
+    """The integration reached MAX_EVALUATIONS at instant t."""
+
+
+class Overflows(StoppedAt):
     """The state left float64's range at instant t (loads out of scale)."""
 
 
@@ -328,8 +332,8 @@ class ForwardDynamics:
                 raise MechanismError("time", f"the motion leaves float64's range at t = {error.t:.6g} s "
                                              f"(a rate beyond {RATE_LIMIT:.0e}): the scene's loads (gravity, torques, "
                                              "springs) are out of scale for its masses and sizes") from None
-            except NoInertia as error:
-                raise MechanismError(error.key, error.reason) from None
+            except NoInertia:      # a refusal as it stands, not a stop to explain
+                raise
             except TooLong as error:
                 share = (error.t - start.t0) / (t_end - start.t0)
                 raise MechanismError("time.end", f"the reference's integration reached only t = {error.t:.6g} s of "

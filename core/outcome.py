@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from .engine_inputs import Feed
 from .scenario import Scenario
 from .signals import Signals
 
@@ -20,6 +21,9 @@ class Task:
     #: Engine steps the run takes (simulated time / step), its expected
     #: cost: `run_tasks` starts the longest runs first.
     steps: float = 0.0
+    #: A regression check's recorded settings and reference reads, fed to
+    #: the engine instead of being derived anew (`mechval.engine_inputs`).
+    feed: Feed | None = None
 
     @property
     def label(self) -> str:
@@ -38,3 +42,6 @@ class Outcome:
     #: CPU time of the run's worker process (s): unlike the wall time, not
     #: stretched by other work sharing the machine.
     cpu_time: float = 0.0
+    #: Per signal, how far it moved when the run's inputs moved by an ulp
+    #: (measured by `baseline save` only).
+    sensitivity: Mapping[str, float] | None = None

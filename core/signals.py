@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from .adapter import RunInfo
+from .engine_inputs import RecordedInputs
 from .kinematics import point_motion, slide_axis, slide_motion
 from .mechanism import Mechanism
 from .resultants import body_resultants, resultant_columns, resultant_inputs
@@ -110,6 +111,9 @@ class Signals:
     health: pd.DataFrame | None = None
     #: What the run did (build and wall time, steps, warnings, facts).
     info: RunInfo = field(default_factory=RunInfo)
+    #: What an engine run read from the reference (`mechval.engine_inputs`):
+    #: a baseline stores it, and a regression check feeds it back.
+    inputs: RecordedInputs | None = None
 
     @property
     def t(self) -> np.ndarray:
@@ -134,7 +138,11 @@ class Signals:
         Written to a temporary file in the same folder and renamed, so an
         interrupted write never leaves a half-written file.
         """
-        write_atomically(path, lambda f: self.frame.to_csv(f, index=False, float_format="%.17g", na_rep=""))
+        write_atomically(path, self.write_csv)
+
+    def write_csv(self, file) -> None:
+        """The CSV text (%.17g, missing values empty) into an open file."""
+        self.frame.to_csv(file, index=False, float_format="%.17g", na_rep="")
 
 
 def canonical_signals(

@@ -15,6 +15,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
+from mechval import engine_inputs
 from mechval.adapter import (MAX_STEPS_PER_SAMPLE, EngineAdapter, RawRun, RunInfo,  # noqa: F401 (re-exported)
                              Unrepresentable)
 from mechval.dynamics import RTOL, raw_dynamics
@@ -62,10 +63,15 @@ def reference_motion(mechanism: Mechanism, t: np.ndarray, rtol: float = RTOL) ->
     refuses is Unrepresentable with its key and reason."""
     if not mechanism.forward_dynamics:
         return mechanism.motion(t)
-    try:
-        return raw_dynamics(mechanism, t, rtol=rtol).frame
-    except MechanismError as exc:
-        raise Unrepresentable(exc.key, exc.reason) from None
+
+    def integrate() -> pd.DataFrame:
+        try:
+            return raw_dynamics(mechanism, t, rtol=rtol).frame
+        except MechanismError as exc:
+            raise Unrepresentable(exc.key, exc.reason) from None
+    # Through the run's recorded inputs, where the harness feeds them
+    # (`mechval.engine_inputs`).
+    return engine_inputs.read(mechanism, "dynamics", t, rtol, integrate)
 
 
 def planned_motion(mechanism: Mechanism) -> Mechanism:

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 from mujoco import rollout
 
+from mechval import engine_inputs
 from mechval.engines.base import Unrepresentable, reference_motion
 from mechval.kinematics import separation_gap, slide_axis
 from mechval.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
@@ -146,13 +147,11 @@ class Model:
         consistent state there (its pre-roll is 0)."""
         while preroll > 0:
             t = float(self.times[0]) - preroll * dt + dt * np.arange(preroll + 1)
-            try:
-                with np.errstate(invalid="ignore"):
-                    motion = self.mech.motion(t)
-                if np.all(np.isfinite(motion.to_numpy())):
-                    return preroll, raw_columns(motion.iloc[:1])
-            except ValueError:                    # the reference refuses those instants
-                pass
+            # One read of the run's inputs (`mechval.engine_inputs`): the
+            # first row, or none where the loop does not close throughout.
+            start = engine_inputs.read(self.mech, "closing start", t, None, lambda: closing_start(self.mech, t))
+            if len(start):
+                return preroll, raw_columns(start)
             preroll //= 2
         return 0, raw_columns(self.reference_motion(self.times[:1]))
 
@@ -476,3 +475,15 @@ class Model:
             u = slide_axis(col, j) if j.kind == "prismatic" else None
             worst = np.maximum(worst, separation_gap(j, p_j[:, 0] - p_i[:, 0], p_j[:, 1] - p_i[:, 1], u))
         return worst
+
+
+def closing_start(mech: Mechanism, t: np.ndarray) -> pd.DataFrame:
+    """The reference motion's first row at instants t if the loop closes
+    at every one of them, else no row (the reference refuses them, or
+    gives NaN where the loop cannot close)."""
+    try:
+        with np.errstate(invalid="ignore"):
+            motion = engine_inputs.source_motion(mech)(t)
+    except ValueError:                    # the reference refuses those instants
+        return pd.DataFrame()
+    return motion.iloc[:1].reset_index(drop=True) if np.all(np.isfinite(motion.to_numpy())) else pd.DataFrame()

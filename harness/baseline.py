@@ -14,6 +14,17 @@ rounding means the engine, its settings or the scenario changed.
 `compare_to_baseline` returns the verdict per signal as data; the CLI and
 pytest both print and judge from it.
 
+The verdict must depend on the engine alone, not on the machine: the JSON
+record keeps everything the engine was fed — every resolved setting and
+every value the run read from the reference (`inputs`,
+`mechval.engine_inputs`) — and a check feeds exactly those (`feed`), since
+the reference's last bits vary with the machine's BLAS kernels and an
+engine can amplify them a hundred-million-fold. It also keeps each signal's
+`sensitivity`, how far the signal moved when those inputs moved by one unit
+in the last place, measured when the baseline was saved: the threshold
+stays SENSITIVITY_MARGIN times above it, so that what an engine makes of
+another machine's last bits is not a regression.
+
 Engine, version, scenario name and setting each become one folder or file
 name under the root, so each must be a plain name (`checked_name`): a
 scenario called "../../x" or "/tmp/x" must not write outside the root. A
@@ -25,6 +36,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 import warnings
 from dataclasses import asdict, dataclass
@@ -36,8 +48,9 @@ import pandas as pd
 from packaging.version import InvalidVersion, Version
 
 from mechval.compare import compare
+from mechval.engine_inputs import Feed, RecordedInputs
 from mechval.scenario import Scenario, Tolerance
-from mechval.signals import SIGNAL_CLASS, Signals, write_atomically
+from mechval.signals import SIGNAL_CLASS, Signals
 
 #: Default regression threshold: max |new − stored| ≤ RTOL · peak, with peak
 #: the stored signal's max |value| over the run. Measured on the committed
@@ -57,6 +70,13 @@ DEFAULT_RTOL = 1e-9
 #: above the last bits of the quantities it derives from (1 ulp of an
 #: acceleration of 50 rad/s² is 7e-15) and far below a physical change.
 ABSOLUTE_FLOOR = 1e-12
+#: The threshold is at least this many times a signal's recorded
+#: sensitivity (its largest move when the run's inputs moved by ±1 ulp). A
+#: machine whose libm or CPU dispatch changes an engine's own arithmetic in
+#: the last bits moves its signals by about that much; tests/test_baselines.py
+#: checks that the margin keeps every committed threshold below the smallest
+#: change an engine upgrade made.
+SENSITIVITY_MARGIN = 100.0
 #: Accuracy against the reference counts as unchanged while the old and new
 #: max relative errors differ by less than this fraction of the old one; a
 #: smaller shift of an error says nothing about accuracy (halving the step
@@ -74,7 +94,7 @@ REQUIRED_META = {"engine": str, "version": str, "setting": str, "settings": dict
                  "scenario_hash": str, "provenance": dict, "samples": int}
 JSON_TYPE = {str: "a string", dict: "an object", int: "a whole number"}
 
-COLUMNS = ["signal", "class", "max_abs_diff", "t_max", "peak", "relative", "rtol", "threshold",
+COLUMNS = ["signal", "class", "max_abs_diff", "t_max", "peak", "relative", "rtol", "sensitivity", "threshold",
            "verdict", "reason"]
 
 
@@ -85,6 +105,20 @@ class Baseline:
     path: Path                  # the .csv file
     signals: Signals
     meta: Mapping[str, Any]
+
+    @property
+    def sensitivity(self) -> dict[str, float]:
+        """Per signal, its recorded move under ±1 ulp of the inputs (none
+        for a baseline saved before mechval measured it)."""
+        return dict(self.meta.get("sensitivity") or {})
+
+    def feed(self) -> tuple[Feed | None, str]:
+        """What to feed the engine to reproduce this run, or None and why
+        it cannot be reproduced."""
+        if "inputs" not in self.meta:
+            return None, ("this baseline does not record what the engine was fed (saved before mechval "
+                          "recorded it)")
+        return Feed(dict(self.meta["settings"]), RecordedInputs.from_json(self.meta["inputs"])), ""
 
 
 class UnsafeName(ValueError):
@@ -134,12 +168,16 @@ def scenario_hash(scenario: Scenario, engine: str) -> str:
 
 
 def metadata(scenario: Scenario, setting: str, overrides: Mapping[str, Any], signals: Signals,
-             provenance: Mapping[str, str]) -> dict[str, Any]:
+             provenance: Mapping[str, str], sensitivity: Mapping[str, float] | None = None) -> dict[str, Any]:
     """The JSON record of a run: engine, version, settings (the resolved
     inputs) apart from the run's own facts (steps taken, measured gap, wall
-    time), scenario and its hash, machine and commit."""
+    time), what the run read from the reference and each signal's
+    sensitivity to it, scenario and its hash, machine and commit."""
     plain = lambda values: json.loads(json.dumps(dict(values), default=repr))
-    return {
+    fed = {} if signals.inputs is None else {"inputs": signals.inputs.as_json()}
+    if sensitivity is not None:
+        fed["sensitivity"] = {name: float(value) for name, value in sensitivity.items()}
+    return {**fed,
         "engine": signals.source, "version": signals.version, "setting": setting,
         "overrides": plain(overrides),
         "settings": plain(signals.settings),
@@ -150,25 +188,109 @@ def metadata(scenario: Scenario, setting: str, overrides: Mapping[str, Any], sig
     }
 
 
-def save(path: Path, signals: Signals, meta: Mapping[str, Any]) -> None:
-    """Write the CSV and JSON (each atomically). Refusing to overwrite is
-    the caller's decision, made before anything runs."""
-    signals.to_csv(path)
-    write_atomically(path.with_suffix(".json"),
-                     lambda f: f.write(json.dumps(meta, indent=2, sort_keys=True) + "\n"))
+class BaselineAppeared(FileExistsError):
+    """`save` without overwriting found the file created meanwhile (a
+    concurrent save of the same baseline): it is left as it is."""
+
+
+def save(path: Path, signals: Signals, meta: Mapping[str, Any], overwrite: bool = False) -> None:
+    """Write the CSV and JSON, each whole or not at all: into a temporary
+    file named after this process (`remove_stale_temporaries` knows it),
+    then renamed over the target (`overwrite`), or linked to it, which
+    fails when it exists (BaselineAppeared), so that two saves of one
+    baseline never both succeed. Nothing is followed through a symbolic
+    link (`refuse_links`)."""
+    refuse_links(path)
+    text = json.dumps(meta, indent=2, sort_keys=True) + "\n"
+    for target, write in ((path, signals.write_csv), (path.with_suffix(".json"), lambda f: f.write(text))):
+        target.parent.mkdir(parents=True, exist_ok=True)
+        temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+        try:
+            with open(temporary, "x", newline="") as f:
+                write(f)
+            if overwrite:
+                os.replace(temporary, target)
+            else:
+                try:
+                    os.link(temporary, target)
+                except FileExistsError:
+                    raise BaselineAppeared(f"{target} appeared while this save ran (another save of the same "
+                                           "baseline?); it was left as it is") from None
+        finally:
+            temporary.unlink(missing_ok=True)
+
+
+#: A temporary file of `save`: .NAME.PID.tmp.
+TEMPORARY = re.compile(r"\.(?P<name>.+)\.(?P<pid>[0-9]+)\.tmp")
+
+
+def remove_stale_temporaries(folder: Path) -> list[Path]:
+    """Remove the temporary files that a save killed mid-write left in
+    `folder` (their process is gone); the removed paths."""
+    removed = []
+    for path in Path(folder).glob(".*.tmp") if Path(folder).is_dir() else ():
+        match = TEMPORARY.fullmatch(path.name)
+        if match and not path.is_symlink() and not _alive(int(match["pid"])):
+            path.unlink(missing_ok=True)
+            removed.append(path)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+class LinkInside(ValueError):
+    """A symbolic link inside the baseline folder, which mechval does not
+    follow (it could lead outside the folder the user named)."""
+
+
+def refuse_links(path: Path, root: Path | None = None) -> None:
+    """LinkInside if `path`, its .json or a folder between it and the
+    baseline root (DIR, three levels up) is a symbolic link."""
+    path = Path(path)
+    root = Path(root) if root is not None else path.parents[min(3, len(path.parents) - 1)]
+    for part in (path, path.with_suffix(".json"), *path.parents):
+        if part == root or len(part.parts) <= len(root.parts):
+            break
+        if part.is_symlink():
+            raise LinkInside(f"{part} is a symbolic link: mechval neither follows nor replaces links inside "
+                             f"the baseline folder {root}")
 
 
 def load(path: Path) -> Baseline:
     """Read a baseline (the .csv and the .json beside it); CorruptBaseline
-    when either cannot be read, lacks what the check needs, the two disagree
-    on the number of samples or a cell is empty without a stated reason."""
+    when either cannot be read or is a symbolic link, lacks what the check
+    needs, the two disagree on the number of samples or a cell is empty
+    without a stated reason."""
     path = Path(path)
+    try:
+        refuse_links(path)
+    except LinkInside as exc:
+        raise CorruptBaseline(path, str(exc)) from None
     meta = _read_meta(path.with_suffix(".json"))
     frame = _read_frame(path)
     if len(frame) != meta["samples"]:
         raise CorruptBaseline(path, f"{len(frame)} samples, but its .json records {meta['samples']} "
                                     "(a truncated or edited file)")
     signals = Signals(frame, meta["engine"], meta["version"], meta["settings"], meta["missing"])
+    if "inputs" in meta:
+        try:
+            RecordedInputs.from_json(meta["inputs"])
+        except ValueError as exc:
+            raise CorruptBaseline(path.with_suffix(".json"), f"key 'inputs': {exc}") from None
+    sensitivity = meta.get("sensitivity", {})
+    if not isinstance(sensitivity, dict) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v >= 0
+            for v in sensitivity.values()):
+        raise CorruptBaseline(path.with_suffix(".json"), "key 'sensitivity': expected an object of "
+                                                         "non-negative numbers")
     gaps = signals.unexplained_gaps()
     if gaps:    # `save` stores none: a cell lost from a truncated or edited file
         raise CorruptBaseline(path, f"empty or non-finite cells that its .json gives no reason for "
@@ -263,13 +385,15 @@ def find(root: Path, engine: str, version: str, scenario: str, setting: str) -> 
 
 
 def compare_to_baseline(stored: Signals, new: Signals, rtol: float = DEFAULT_RTOL,
-                        signal_rtol: Mapping[str, float] | None = None) -> pd.DataFrame:
+                        signal_rtol: Mapping[str, float] | None = None,
+                        sensitivity: Mapping[str, float] | None = None) -> pd.DataFrame:
     """One row per signal (t included): max |new − stored|, where (t), its
-    ratio to the stored peak, the threshold max(rtol·peak, ABSOLUTE_FLOOR)
-    and the verdict "identical", "within" or "regression". A signal added or
-    removed, a changed number of samples or a changed set of missing values
-    is a regression."""
-    signal_rtol = dict(signal_rtol or {})
+    ratio to the stored peak, the threshold max(rtol·peak,
+    SENSITIVITY_MARGIN·sensitivity, ABSOLUTE_FLOOR) and the verdict
+    "identical", "within" or "regression". A signal added or removed, a
+    changed number of samples or a changed set of missing values is a
+    regression."""
+    signal_rtol, sensitivity = dict(signal_rtol or {}), dict(sensitivity or {})
     if len(stored.frame) != len(new.frame):
         reason = f"{len(stored.frame)} samples stored, {len(new.frame)} now"
         return pd.DataFrame([dict(signal="(samples)", verdict="regression", reason=reason)], columns=COLUMNS)
@@ -277,14 +401,15 @@ def compare_to_baseline(stored: Signals, new: Signals, rtol: float = DEFAULT_RTO
     rows = []
     for name in dict.fromkeys([*stored.frame.columns, *new.frame.columns]):
         r = signal_rtol.get(name, rtol)
-        row = dict(signal=name, **{"class": SIGNAL_CLASS.get(name, "time")}, rtol=r, reason="")
+        row = dict(signal=name, **{"class": SIGNAL_CLASS.get(name, "time")}, rtol=r,
+                   sensitivity=float(sensitivity.get(name, 0.0)), reason="")
         if name not in new.frame or name not in stored.frame:
             rows.append(dict(row, verdict="regression",
                              reason="signal removed" if name not in new.frame else "signal added"))
             continue
         old, now = stored[name].astype(float), new[name].astype(float)
         peak = float(np.nanmax(np.abs(old))) if np.isfinite(old).any() else 0.0
-        threshold = max(r * peak, ABSOLUTE_FLOOR)
+        threshold = max(r * peak, SENSITIVITY_MARGIN * row["sensitivity"], ABSOLUTE_FLOOR)
         row.update(peak=peak, threshold=threshold)
         gaps = np.isnan(old) != np.isnan(now)
         if gaps.any():
@@ -300,6 +425,23 @@ def compare_to_baseline(stored: Signals, new: Signals, rtol: float = DEFAULT_RTO
             verdict, row["reason"] = "regression", "non-finite value"
         rows.append(dict(row, verdict=verdict))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def sensitivity(signals: Signals, moved: list[Signals]) -> dict[str, float]:
+    """Per signal, its largest move (max |moved − signals| over the run)
+    among runs whose inputs moved by an ulp (`RecordedInputs.nudged`), at
+    the samples where both have a value."""
+    result = {}
+    for name in signals.frame.columns:
+        base = signals[name].astype(float)
+        largest = 0.0
+        for other in moved:
+            if name in other.frame and len(other.frame) == len(base):
+                diff = np.abs(other[name].astype(float) - base)
+                finite = np.isfinite(diff)      # a gap is judged by the check itself
+                largest = max(largest, float(diff[finite].max()) if finite.any() else 0.0)
+        result[name] = largest
+    return result
 
 
 def regressed(rows: pd.DataFrame) -> bool:

@@ -5,6 +5,7 @@ what changed (the rule itself is `mechval.harness.baseline.compare_to_baseline`)
 
 from __future__ import annotations
 
+import dataclasses
 import shlex
 import sys
 from pathlib import Path
@@ -12,6 +13,7 @@ from typing import Any, Mapping
 
 import pandas as pd
 
+from mechval.engine_inputs import Feed
 from mechval.engines.registry import adapter_class
 from mechval.outcome import Outcome, Task
 from mechval.reports.build import provenance
@@ -20,7 +22,8 @@ from mechval.scenarios import builtin_path
 from mechval.signals import Signals
 
 from . import baseline as bl
-from .runner import references_for, run_tasks, tasks_for
+from .runner import references_for, run_tasks, simulate_task, tasks_for
+from .simulate import simulate
 
 
 class BaselinesExist(Exception):
@@ -32,11 +35,16 @@ TIMEOUT = 900.0
 
 
 def save_command(scenarios: list, engines: list[str], root: Path, force: bool, workers: int) -> int:
-    """Store a baseline per scenario × engine × variant; refuse, before
-    running anything, when any of them exists and `force` is not given."""
+    """Store a baseline per scenario × engine × variant, with what each run
+    was fed and how far its signals move when that moves by an ulp
+    (`sensitive_task`); refuse, before running anything, when any of them
+    exists and `force` is not given, or lies behind a symbolic link."""
     tasks = tasks_for(scenarios, engines)
     versions = checked_path_names(tasks)
     targets = [bl.baseline_path(root, t.engine, versions[t.engine], t.scenario.name, t.setting) for t in tasks]
+    for target in targets:
+        bl.refuse_links(target, root)
+        bl.remove_stale_temporaries(target.parent)
     existing = [p for p in targets if p.exists() or p.with_suffix(".json").exists()]
     if existing and not force:
         listing = "\n".join(f"  {p}" for p in existing)
@@ -55,17 +63,38 @@ def save_command(scenarios: list, engines: list[str], root: Path, force: bool, w
             error = f"non-finite values without a reason ({'; '.join(gaps)})"
         elif signals is not None and signals.version != versions[task.engine]:
             error = f"the worker ran {task.engine} {signals.version}, not {versions[task.engine]}"
+        path = None if error else bl.baseline_path(root, task.engine, signals.version, task.scenario.name,
+                                                   task.setting)
+        if path is not None:
+            try:
+                bl.save(path, signals, run_metadata(task, signals, meta, outcome.sensitivity), overwrite=force)
+            except (bl.BaselineAppeared, bl.LinkInside) as exc:
+                error = str(exc)
+            except OSError as exc:
+                error = f"cannot write {exc.filename or path}: {exc.strerror or exc}"
         if error:
             failures += 1
             print(f"FAILED {task.label}: {error} (no baseline written)", file=sys.stderr)
             return
-        path = bl.baseline_path(root, task.engine, signals.version, task.scenario.name, task.setting)
-        bl.save(path, signals, run_metadata(task, signals, meta))
         bl.obtained_path(path).unlink(missing_ok=True)      # a regression's new signals, now recorded
         print(f"saved {path}")
 
-    run_tasks(tasks, workers=workers, timeout=TIMEOUT, on_done=store)
+    run_tasks(tasks, workers=workers, timeout=TIMEOUT, on_done=store, body=sensitive_task)
     return 1 if failures else 0
+
+
+#: The input moves of the sensitivity runs, in units in the last place.
+NUDGES = (1, -1)
+
+
+def sensitive_task(task: Task) -> tuple[Signals, float, float, dict[str, float]]:
+    """Worker body of `save`: the run (`simulate_task`, which records what
+    it was fed), then the same run fed those inputs moved by ±1 ulp, and
+    each signal's largest move among them (`baseline.sensitivity`)."""
+    signals, wall_time, cpu_time = simulate_task(task)
+    moved = [simulate(task.scenario, task.engine, task.overrides, Feed(signals.settings, signals.inputs.nudged(ulps)))
+             for ulps in NUDGES] if signals.inputs is not None else []
+    return signals, wall_time, cpu_time, bl.sensitivity(signals, moved)
 
 
 def checked_path_names(tasks: list[Task]) -> dict[str, str]:
@@ -97,9 +126,10 @@ def save_command_line(task: Task, root: Path, force: bool = False) -> str:
     return shlex.join(words + (["--force"] if force else []))
 
 
-def run_metadata(task: Task, signals: Signals, provenance: Mapping[str, str]) -> dict[str, Any]:
+def run_metadata(task: Task, signals: Signals, provenance: Mapping[str, str],
+                 sensitivity: Mapping[str, float] | None = None) -> dict[str, Any]:
     """`baseline.metadata` of a finished task."""
-    return bl.metadata(task.scenario, task.setting, task.overrides, signals, provenance)
+    return bl.metadata(task.scenario, task.setting, task.overrides, signals, provenance, sensitivity)
 
 
 def check_run(root: Path, task: Task, signals: Signals, reference: Signals, provenance: Mapping[str, str],
@@ -135,13 +165,21 @@ def check_run(root: Path, task: Task, signals: Signals, reference: Signals, prov
                                     f"it again with\n    {save_command_line(task, root, force=True)}")
     lines, regression = _comparison(task, base, signals, reference, provenance, rtol, signal_rtol)
     lines[0] = f"{task.label}: {lines[0]}"
+    lines.insert(1, "  inputs: " + (
+        f"fed the recorded settings and {len(task.feed.reads)} reference read(s), as saved"
+        if task.feed is not None else
+        f"NOT fed ({base.feed()[1] or 'the check ran without them'}): derived again on this machine, "
+        "whose floating point may move the engine's signals beyond the threshold"))
     obtained = bl.obtained_path(bl.baseline_path(obtained_root or root, task.engine, version, name, task.setting))
     if not regression:
         obtained.unlink(missing_ok=True)
         return "ok", "\n".join(lines + ["  verdict: OK"])
     try:
+        bl.refuse_links(obtained, obtained_root or root)
         signals.to_csv(obtained)
         lines.append(f"  new signals written to {obtained} (diff it with the baseline)")
+    except bl.LinkInside as exc:
+        lines.append(f"  new signals not written: {exc}")
     except OSError as exc:      # e.g. a read-only checkout: the verdict stands without the file
         lines.append(f"  new signals not written to {obtained}: {exc.strerror or exc}")
     lines.append(f"  verdict: REGRESSION (if the change is intended, record it: "
@@ -159,7 +197,7 @@ def _comparison(task: Task, base: bl.Baseline, signals: Signals, reference: Sign
              f"saved {provenance_old.get('date', '(no date)')}, commit {provenance_old.get('commit', '(none)')})"]
     lines += [f"  note: {change}" for change in
               bl.context_changes(base.meta, run_metadata(task, signals, provenance))]
-    rows = bl.compare_to_baseline(base.signals, signals, rtol, signal_rtol)
+    rows = bl.compare_to_baseline(base.signals, signals, rtol, signal_rtol, base.sensitivity)
     changed = rows[rows["verdict"] != "identical"]
     if changed.empty:
         lines.append(f"  signals: all {len(rows)} bit-identical")
@@ -180,7 +218,8 @@ def check_command(scenarios: list, engines: list[str], root: Path, rtol: float |
     rtol = bl.DEFAULT_RTOL if rtol is None else rtol
     meta = provenance()
     tasks = tasks_for(scenarios, engines)
-    checked_path_names(tasks)
+    versions = checked_path_names(tasks)
+    tasks = [fed(root, task, versions[task.engine]) for task in tasks]
     references = references_for(scenarios)
     verdicts: dict[str, int] = {}
 
@@ -196,6 +235,23 @@ def check_command(scenarios: list, engines: list[str], root: Path, rtol: float |
     run_tasks(tasks, workers=workers, timeout=TIMEOUT, on_done=judge)
     print("baseline check: " + ", ".join(f"{v}: {n}" for v, n in sorted(verdicts.items())))
     return 0 if set(verdicts) <= {"ok"} else 1
+
+
+def fed(root: Path, task: Task, version: str) -> Task:
+    """The task with the feed of its stored baseline (the installed
+    version's), so that the check runs the engine on exactly what it was
+    fed then; as it is when there is no such baseline, it cannot be read
+    (the check then says so) or it records no inputs, or the scenario
+    changed since (old inputs would not fit it)."""
+    path = bl.baseline_path(root, task.engine, version, task.scenario.name, task.setting)
+    try:
+        base = bl.load(path)
+    except bl.CorruptBaseline:
+        return task
+    feed, _ = base.feed()
+    if feed is None or base.meta["scenario_hash"] != bl.scenario_hash(task.scenario, task.engine):
+        return task
+    return dataclasses.replace(task, feed=feed)
 
 
 def _table(frame: pd.DataFrame, index: bool = False) -> str:

@@ -32,7 +32,7 @@ from mechval.scenarios import builtin_names, load
 from mechval.signals import SIGNAL_CLASS, Signals
 
 from .audit_run import audit_all, audit_scenario
-from .baseline import UnsafeName
+from .baseline import LinkInside, UnsafeName
 from .baseline_run import BaselinesExist, check_command, save_command
 from .cost import points_for, sweep
 from .executors import DASK_CONNECT_TIMEOUT, LocalExecutor, SchedulerUnreachable, dask_address_problem, executor_for
@@ -427,7 +427,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with stop_on_signals():
             return args.func(args)
-    except (ScenarioError, UnknownEngine, UsageError, BaselinesExist, UnsafeName) as exc:
+    except (ScenarioError, UnknownEngine, UsageError, BaselinesExist, UnsafeName, LinkInside) as exc:
         print(f"mechval: error: {exc}", file=sys.stderr)
         return 2
     except EngineUnavailable as exc:

@@ -29,7 +29,7 @@ def simulate_task(task: Task) -> tuple[Signals, float, float]:
     worker's CPU time (all its threads; on a shared machine the steadier
     figure of what the run costs)."""
     start, cpu = time.perf_counter(), time.process_time()
-    signals = simulate(task.scenario, task.engine, task.overrides)
+    signals = simulate(task.scenario, task.engine, task.overrides, task.feed)
     return signals, time.perf_counter() - start, time.process_time() - cpu
 
 
@@ -60,19 +60,23 @@ def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Tas
 
 
 def run_tasks(tasks: list[Task], workers: int, timeout: float,
-              on_done: Callable[[Outcome], None] = lambda outcome: None) -> list[Outcome]:
-    """Run every task in a worker process; failures become Outcomes, in the
-    tasks' order. The runs with the most steps start first, so that no long
-    run is left to finish alone while the other workers idle."""
+              on_done: Callable[[Outcome], None] = lambda outcome: None,
+              body: Callable[[Task], tuple] = simulate_task) -> list[Outcome]:
+    """Run every task in a worker process (`body`: `simulate_task`, or one
+    that returns its figures and each signal's sensitivity); failures
+    become Outcomes, in the tasks' order. The runs with the most steps
+    start first, so that no long run is left to finish alone while the
+    other workers idle."""
     def outcome(task: Task, done: Done) -> Outcome:
         if done.error:
             return Outcome(task, None, done.error)
-        signals, wall_time, cpu_time = done.value
-        return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time)
+        signals, wall_time, cpu_time, *sensitivity = done.value
+        return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time,
+                       sensitivity=sensitivity[0] if sensitivity else None)
 
     order = longest_first(tasks)
     results = LocalExecutor(workers, timeout).run(
-        simulate_task, [tasks[k] for k in order], lambda index, done: on_done(outcome(tasks[order[index]], done)))
+        body, [tasks[k] for k in order], lambda index, done: on_done(outcome(tasks[order[index]], done)))
     in_task_order = dict(zip(order, results))
     return [outcome(task, in_task_order[k]) for k, task in enumerate(tasks)]
 

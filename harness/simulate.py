@@ -5,10 +5,12 @@ canonical signals and the run's health."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, Mapping
 
 from mechval.adapter import EngineAdapter, Unrepresentable, mechanism_features
-from mechval.engines.registry import adapter
+from mechval.engine_inputs import EngineInputs, Feed, fed_mechanism
+from mechval.engines.registry import REFERENCE, adapter
 from mechval.health import health
 from mechval.linkages import build_mechanism
 from mechval.scenario import Scenario, ScenarioError
@@ -16,11 +18,15 @@ from mechval.signals import Signals, canonical_signals
 
 
 def simulate(scenario: Scenario, engine: EngineAdapter | str,
-             overrides: Mapping[str, Any] | None = None) -> Signals:
+             overrides: Mapping[str, Any] | None = None, feed: Feed | None = None) -> Signals:
     """Canonical signals of `engine` (an adapter or a registered name) on
     the scenario, with its settings, run facts and health (docs/adapters.md).
     A scene the engine cannot represent is refused as bad input, naming the
-    scenario's file."""
+    scenario's file.
+
+    An engine run records what it read from the reference (`Signals.inputs`,
+    `mechval.engine_inputs`); given a `feed` (a baseline's record), it runs
+    with exactly those settings and reads instead of deriving them here."""
     engine_adapter = adapter(engine) if isinstance(engine, str) else engine
     mechanism = build_mechanism(scenario)
     for feature, key in mechanism_features(mechanism).items():
@@ -28,10 +34,17 @@ def simulate(scenario: Scenario, engine: EngineAdapter | str,
             why = engine_adapter.feature_limits.get(feature)
             raise ScenarioError(scenario.source, key, f"{engine_adapter.name}: " + (
                 f"cannot run {feature}: {why}" if why else f"its adapter does not build {feature} yet"))
-    settings = engine_adapter.settings_for(scenario, mechanism, overrides)
+    if feed is None:
+        settings = engine_adapter.settings_for(scenario, mechanism, overrides)
+    else:
+        settings = dict(feed.settings)
+    # The reference's own run reads its motion at every sample: nothing to feed.
+    inputs = None if engine_adapter.name == REFERENCE else EngineInputs(feed.reads if feed else None)
     try:
-        raw = engine_adapter.run(mechanism, scenario.time.t, settings)
+        raw = engine_adapter.run(mechanism if inputs is None else fed_mechanism(mechanism, inputs),
+                                 scenario.time.t, settings)
     except Unrepresentable as exc:
         raise ScenarioError(scenario.source, exc.key, f"{engine_adapter.name}: {exc.reason}") from None
-    return canonical_signals(mechanism, raw.frame, engine_adapter.name, engine_adapter.version(), settings,
-                             raw.missing, health(mechanism, raw.frame, raw.missing), raw.info)
+    signals = canonical_signals(mechanism, raw.frame, engine_adapter.name, engine_adapter.version(), settings,
+                                raw.missing, health(mechanism, raw.frame, raw.missing), raw.info)
+    return signals if inputs is None else dataclasses.replace(signals, inputs=inputs.record())

@@ -1,12 +1,11 @@
-"""Write a complete report folder: index.html, discrepancies.csv and
-summary.md. Everything is written to a temporary sibling folder and moved
+"""Write a complete report folder: index.html, discrepancies.csv, runs.csv
+and summary.md. Everything is written to a temporary sibling folder and moved
 into place at the end, so an interrupted run leaves no half-written report.
 """
 
 from __future__ import annotations
 
 import datetime
-import json
 import os
 import platform
 import subprocess
@@ -25,7 +24,7 @@ from mechval.outcome import Outcome
 from mechval.scenario import Scenario, one_line
 from mechval.signals import Signals, write_folder_atomically
 
-from . import plots
+from . import plots, runs
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 #: The columns of a run's records on the page (its heading names the
@@ -233,16 +232,6 @@ def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Out
     )
 
 
-def _runs(outcomes: Iterable[Outcome]) -> list[dict]:
-    runs = []
-    for o in outcomes:
-        s = o.signals
-        details = o.error if s is None else json.dumps({**s.settings, **s.info.as_dict()}, default=str, sort_keys=True)
-        runs.append(dict(scenario=o.task.scenario.name, engine=o.task.engine, setting=o.task.setting,
-                         version=s.version if s else "", wall=f"{o.wall_time:.3g}" if s else "", details=details))
-    return runs
-
-
 def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str, Signals],
                  outcomes: list[Outcome], records: pd.DataFrame,
                  extra_sections: Sequence[Section] = (),
@@ -259,7 +248,7 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
                                       records, palette) for s in scenarios]
         sections.sort(key=lambda section: section["verdict"] != "fail")       # failures first, else as given
         html = env.get_template("report.html.j2").render(
-            meta=meta, matrix=summary_matrix(records, scenarios), scenarios=sections, runs=_runs(outcomes),
+            meta=meta, matrix=summary_matrix(records, scenarios), scenarios=sections, engine_runs=runs.run_tables(outcomes),
             overall_pass=not (records["verdict"] == "fail").any(),
             failures=int(records[records["verdict"] == "fail"].groupby(["scenario", "engine", "setting"]).ngroups),
             engines=list(dict.fromkeys(records["engine"])), verdicts=VERDICTS,
@@ -267,6 +256,7 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
             per_figure=plots.SIGNALS_PER_FIGURE, scripts=plots.page_scripts())
         (folder / "index.html").write_text(html, encoding="utf-8")
         records.to_csv(folder / "discrepancies.csv", index=False, float_format="%.17g")
+        runs.write_runs_csv(folder / "runs.csv", outcomes)
         (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta, references), encoding="utf-8")
         for name, write in (extra_files or {}).items():
             write(folder / name)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Collection, Mapping
 
@@ -36,6 +37,10 @@ from .tables import Reader, engine_tables, shown, tolerance
 TOP_KEYS = {"name", "mechanism", "description", "tags", "ground", "body", "joint", "drive", "torque",
             "initial", "force", "assembly", "effects", "time", "tolerance", "engines"}
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*\Z")
+#: An `[assembly]` angle is approximate (often rounded: hand-pump's 1.57
+#: for π/2): a prismatic joint without `angle` whose assembly pose is this
+#: close (rad) to its axis's angle holds the axis's angle exactly.
+AXIS_SNAP = 0.05
 
 
 def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
@@ -57,6 +62,7 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
     initial = _initial(top, joints)
     forces = _forces(top, points)
     pose = _assembly(top.sub("assembly", required=True), bodies)
+    joints = _held_angles(joints, pose)
     gravity = _gravity(top.sub("effects"))
     time = _time(top.sub("time", required=True))
     scene = PlanarScene(bodies, joints, drives, forces, pose, gravity, torques)
@@ -307,6 +313,24 @@ def _assembly(table: Reader, bodies: tuple[Body, ...]) -> dict[str, BodyPose]:
         else:
             pose[body.name] = BodyPose(table.number(body.name))
     return pose
+
+
+def _held_angles(joints: tuple[Joint, ...], pose: Mapping[str, BodyPose]) -> tuple[Joint, ...]:
+    """A prismatic joint without `angle` holds θj − θi of the assembly
+    pose, as drawn (a slider drawn aligned with the world stays so, whatever
+    its axis), or — where the pose is within AXIS_SNAP of it — the axis's
+    angle exactly (`Joint.angle` None: body_j's x axis along the slide)."""
+    def theta(body: str) -> float:
+        return 0.0 if body == GROUND else pose[body].theta
+
+    held = []
+    for joint in joints:
+        if joint.kind == "prismatic" and joint.angle is None:
+            relative = theta(joint.body_j) - theta(joint.body_i)
+            if abs(math.remainder(relative - joint.held_angle, math.tau)) > AXIS_SNAP:
+                joint = replace(joint, angle=relative)
+        held.append(joint)
+    return tuple(held)
 
 
 def _gravity(table: Reader) -> tuple[float, float]:

@@ -100,7 +100,7 @@ def report(tmp_path_factory, scene):
 
 def test_report_files(report):
     out, records = report
-    assert sorted(p.name for p in out.iterdir()) == ["discrepancies.csv", "index.html", "summary.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["discrepancies.csv", "index.html", "runs.csv", "summary.md"]
     csv = pd.read_csv(out / "discrepancies.csv", keep_default_na=False)
     assert len(csv) == len(records)
     assert "nan" not in (out / "discrepancies.csv").read_text().lower()

@@ -14,7 +14,8 @@ from typing import Any, Mapping
 import pandas as pd
 
 from mechval.engine_inputs import Feed
-from mechval.engines.registry import adapter_class
+from mechval.engines.registry import adapter, adapter_class
+from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome, Task
 from mechval.reports.build import provenance
 from mechval.scenario import ScenarioError
@@ -165,10 +166,11 @@ def check_run(root: Path, task: Task, signals: Signals, reference: Signals, prov
                                     f"it again with\n    {save_command_line(task, root, force=True)}")
     lines, regression = _comparison(task, base, signals, reference, provenance, rtol, signal_rtol)
     lines[0] = f"{task.label}: {lines[0]}"
+    lines[2:2] = [f"  note: {note}" for note in derived_now(task)]
     lines.insert(1, "  inputs: " + (
         f"fed the recorded settings and {len(task.feed.reads)} reference read(s), as saved"
         if task.feed is not None else
-        f"NOT fed ({base.feed()[1] or 'the check ran without them'}): derived again on this machine, "
+        f"NOT fed ({feed_of(base, task)[1] or 'the check ran without them'}): derived again on this machine, "
         "whose floating point may move the engine's signals beyond the threshold"))
     obtained = bl.obtained_path(bl.baseline_path(obtained_root or root, task.engine, version, name, task.setting))
     if not regression:
@@ -239,19 +241,54 @@ def check_command(scenarios: list, engines: list[str], root: Path, rtol: float |
 
 def fed(root: Path, task: Task, version: str) -> Task:
     """The task with the feed of its stored baseline (the installed
-    version's), so that the check runs the engine on exactly what it was
-    fed then; as it is when there is no such baseline, it cannot be read
-    (the check then says so) or it records no inputs, or the scenario
-    changed since (old inputs would not fit it)."""
+    version's, `feed_of`), so that the check runs the engine on exactly
+    what it was fed then; as it is where there is none."""
     path = bl.baseline_path(root, task.engine, version, task.scenario.name, task.setting)
     try:
-        base = bl.load(path)
+        feed, _ = feed_of(bl.load(path), task)
     except bl.CorruptBaseline:
         return task
-    feed, _ = base.feed()
-    if feed is None or base.meta["scenario_hash"] != bl.scenario_hash(task.scenario, task.engine):
-        return task
-    return dataclasses.replace(task, feed=feed)
+    return task if feed is None else dataclasses.replace(task, feed=feed)
+
+
+def derived_now(task: Task) -> list[str]:
+    """Where this mechval would derive other settings than the fed ones
+    (beyond their last bits, which another machine moves): the check ran
+    the recorded ones."""
+    if task.feed is None:
+        return []
+    now = adapter(task.engine).settings_for(task.scenario, build_mechanism(task.scenario), task.overrides)
+    notes = []
+    for key in sorted(set(now) | set(task.feed.settings)):
+        old, new = task.feed.settings.get(key, "(absent)"), now.get(key, "(absent)")
+        same = (old == new or isinstance(old, float) and isinstance(new, float)
+                and abs(new - old) <= 1e-12 * max(abs(old), abs(new)))
+        if not same:
+            notes.append(f"this mechval derives setting {key} = {new} where the baseline recorded {old} "
+                         "(the recorded value was fed)")
+    return notes
+
+
+def feed_of(base: bl.Baseline, task: Task) -> tuple[Feed | None, str]:
+    """The baseline's feed for this task, or None and why it cannot be fed:
+    it records no inputs, the scenario changed since (old inputs would not
+    fit it), or the adapter no longer takes the recorded settings."""
+    feed, why = base.feed()
+    if feed is None:
+        return None, why
+    if base.meta["scenario_hash"] != bl.scenario_hash(task.scenario, task.engine):
+        return None, "the scenario changed since the baseline was saved"
+    spec = adapter_class(task.engine).settings_spec
+    if set(feed.settings) != set(spec):
+        added, gone = sorted(set(spec) - set(feed.settings)), sorted(set(feed.settings) - set(spec))
+        return None, (f"the adapter's settings changed since (new: {', '.join(added) or 'none'}; "
+                      f"gone: {', '.join(gone) or 'none'})")
+    for key, value in feed.settings.items():
+        try:
+            spec[key].parse(value)
+        except ValueError as exc:
+            return None, f"the recorded setting {key} = {value!r} is refused now ({exc})"
+    return feed, ""
 
 
 def _table(frame: pd.DataFrame, index: bool = False) -> str:

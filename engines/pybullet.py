@@ -10,14 +10,20 @@ Conversion of PyBullet's native output to the Fij convention (docs/conventions.m
   force on the constraint's child (world axes); same rule.
 - A prismatic joint's couple M on body_j: the sensor's z moment, taken
   about the child link's frame origin, which is the joint's point_j (the
-  link frame sits at the joint point; checked against the reference).
-- A prismatic joint between two moving bodies (the slotted lever's slot,
-  the inverted slider's sleeve): F and M are NOT read but derived from the
-  balance of body_j with PyBullet's own motion and its other joint forces
-  (`pybullet_slide`), because the sensor misreports a slide whose parent
-  turns (a Coriolis-like term in ω·ṡ that does not shrink with dt; the
-  engine finding probe, `pybullet_findings`, measures it). The run info
-  says so (`derived_reactions`).
+  link frame sits at the joint point; checked against the reference),
+  plus, for a slide drive, the moment its force F (which PyBullet applies
+  through the link's centre of mass) has there in the reference, where F
+  acts at point_j: (G − P)×u·F (`pybullet_model.drive_force_arm`).
+- A multibody joint that is not a leaf hung from the ground (a slide
+  between two moving bodies: the slotted lever's slot, the inverted
+  slider's sleeve; a drive hung below a moving link; a joint carrying
+  another link; `pybullet_layout`): F (and a slide's M) are NOT read but
+  derived from the balance of the joint's child body with PyBullet's own
+  motion and its other joint forces (`pybullet_slide`), because the
+  sensor misreports a joint whose parent turns (a Coriolis-like term in
+  ω·ṡ that does not shrink with dt) or whose child carries further links
+  (the engine finding probes, `pybullet_findings`, measure both). The run
+  info says so (`derived_reactions`).
 - Drive torque: `getJointState(drive)[3]`, the motor torque on the child
   link (the crank), i.e. T on body_j (negated if the child is body_i).
   Dampers are applied as external loads, so they are not part of it.

@@ -383,6 +383,7 @@ class Reader:
             Reading(ENGINE, "constraint force caps", ", ".join(f"{v:g}" for v in caps) or "no constraints",
                     "An impulse cap converted with the step; far above any reaction of the built-in scenes.", "note"),
             Reading(ENGINE, "free bases", ", ".join(free) or "none",
-                    "Bodies that are the free base of their own multibody, held by constraints only (layout "
-                    "'split': every joint with a sensor is a leaf).", "note"),
+                    "Bodies that are the free base of a multibody, held to the rest by constraints (layout "
+                    "'split': a reaction is read from a sensor only at a leaf hung from the ground, the others "
+                    "are derived).", "note"),
         ]

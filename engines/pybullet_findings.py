@@ -59,7 +59,8 @@ NON_LEAF_SENSOR = Finding(
     wrong=("The force/torque sensor of a joint whose child link carries further moving links misreads "
            "the joint force, even when the joint's parent is at rest; the error grows with the joint "
            "speeds (40–80 % on F12/F32 of a four-bar built as one tree). mechval builds every joint "
-           "whose reaction it reads as a leaf (layout \"split\")."),
+           "whose reaction it reads as a leaf (layout \"split\") and derives the reaction of a joint that "
+           "must carry another link (a drive beside a drive, a slide on a slide) from its child's balance."),
     how=("A free two-link chain on a fixed pivot (2 kg and 1 kg, centres of mass 0.15 m and 0.2 m "
          "from their joints, second joint 0.3 m out, izz 0.02 and 0.01 kg·m²), no gravity, from "
          "joint angles 0.3 and 0.7 rad turning at 5 and 5 rad/s; 10 steps of 1e-4 s. Exact force on "
@@ -68,7 +69,7 @@ NON_LEAF_SENSOR = Finding(
     figure="|F read − F exact| / |F exact|",
     present_above=1e-3,
     since="3.2.7 (earliest measured)",
-    workaround="make every joint whose reaction is needed a leaf (mechval does)",
+    workaround="make every joint whose reaction is read a leaf; derive the others (mechval does)",
 )
 
 FINDINGS = (SLIDE_SENSOR, NON_LEAF_SENSOR)

@@ -1,15 +1,9 @@
 """Build the PyBullet 3.2.7 model of a generic `Mechanism` (headless client).
 
-Layout ("split", the default; `plan_layout`): every multibody is a root with
-leaf links only, so every multibody joint has its own valid force/torque
-sensor (PyBullet's sensor is wrong for a joint whose child carries further
-moving links: an engine finding, docs/engines.md). The ground is the fixed
-root of the drive joint and the other ground joints; a prismatic joint
-between two moving bodies makes one of them the free root of the other;
-the remaining joints close the loop as `JOINT_POINT2POINT` constraints.
-Layout "tree" is the naive spanning tree (breadth first from the ground,
-the remaining joint closing the loop); it exists only so a regression test
-can show the sensor error.
+Where each joint goes (multibody joint or loop constraint, which
+multibodies, which reactions are read and which derived) is planned in
+`pybullet_layout`; layout "split" (the default) hangs every joint whose
+sensor is read from the fixed ground as a leaf.
 
 Frames: a tree link's frame sits at its joint point with the body's
 orientation; every PyBullet inertial frame is at the body's centre of mass
@@ -22,12 +16,12 @@ effect is disarmed here (see `disarm_defaults` and `configure_solver`).
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from .base import Unrepresentable, native_output_silenced, reference_motion
+from .base import native_output_silenced, reference_motion
+from .pybullet_layout import Link, plan_layout
 
 with native_output_silenced():      # PyBullet prints its build time on import
     import pybullet as p
@@ -84,101 +78,9 @@ class Model:
     constraints: dict[str, LoopConstraint]
     coms: dict[str, tuple[float, float]]
     start: pd.DataFrame
-
-
-Link = tuple[Joint, str, str]   # (joint, parent body, child body)
-
-#: Why layout "tree" refuses a torque-driven or free closed loop (measured:
-#: the free seed four-bar's loop, closed by a point-to-point constraint
-#: between two links of one multibody, opened by 1 m within 0.2 s at a
-#: 1e-4 s step, and at once at 1e-5 s; a drive's motor keeps it closed).
-TREE_LOOP_UNSTABLE = ("layout 'tree' closes the loop inside one multibody, which PyBullet does not keep "
-                      "closed without a drive's motor (the free seed four-bar's loop opened by 1 m within "
-                      "0.2 s); use layout 'split'")
-
-
-def plan_layout(mechanism: Mechanism, layout: str) -> dict[str, list[Link]]:
-    """Multibodies as {root body: its joints (joint, parent, child), parents
-    first}; every joint not listed closes the loop as a user constraint.
-
-    "split": every multibody is a root with leaf links only. Every drive
-    joint is a leaf (its motor; a drive between two moving bodies makes one
-    of them the root of the other); every prismatic joint is a leaf
-    (PyBullet's slider constraint has 5 rows, which over-constrain a planar
-    loop closed by point-to-point constraints); the other ground joints are
-    leaves of the ground where the body is still free; every body left over
-    is the root of its own multibody. Any number of closed loops: every
-    joint not placed closes one as a constraint. "tree": one breadth-first
-    spanning tree from the ground (the naive layout).
-
-    Raises Unrepresentable when a drive joint cannot be a multibody joint
-    (only those have a motor).
-    """
-    drives = [mechanism.joint(d.joint) for d in mechanism.drives]
-    if layout == "tree":
-        links = _breadth_first(mechanism)
-        in_tree = {joint.name for joint, _, _ in links}
-        for joint in drives:
-            if joint.name not in in_tree:
-                raise Unrepresentable("drive", f"layout 'tree' closes a loop at the drive joint {joint.name!r}, "
-                                               "which then has no motor; use layout 'split'")
-        for joint in mechanism.joints:
-            if joint.kind == "prismatic" and joint.name not in in_tree:
-                # A point-to-point constraint there would pin the slide (found by the model audit).
-                raise ValueError(f"pybullet: layout 'tree' would close the loop at the prismatic joint "
-                                 f"{joint.name!r} with a point-to-point constraint (a pin, not a slide); "
-                                 "use layout 'split'")
-        if mechanism.forward_dynamics and len(links) < len(mechanism.joints):
-            raise Unrepresentable("engines.pybullet.layout", TREE_LOOP_UNSTABLE)
-        return {GROUND: links}
-    if layout != "split":
-        raise ValueError(f"pybullet: unknown layout {layout!r} (known: split, tree)")
-    stars: dict[str, list[Link]] = {GROUND: []}
-    children: set[str] = set()
-
-    def attach(joint: Joint) -> bool:
-        for child, parent in ((joint.body_j, joint.body_i), (joint.body_i, joint.body_j)):
-            if child != GROUND and child not in children and child not in stars and parent not in children:
-                stars.setdefault(parent, []).append((joint, parent, child))
-                children.add(child)
-                return True
-        return False
-
-    for joint in drives:
-        if not attach(joint):
-            raise Unrepresentable("drive", f"the drive joint {joint.name!r} cannot be made a leaf of a multibody "
-                                           "(both its bodies already carry or hang from other drive joints), "
-                                           "so it would have no motor")
-    for joint in mechanism.joints:
-        if joint.kind == "prismatic" and joint not in drives and not attach(joint):
-            raise ValueError(f"pybullet: prismatic joint {joint.name!r} cannot be made a leaf")
-    for joint in mechanism.joints:
-        if GROUND in (joint.body_i, joint.body_j) and joint.kind == "revolute":
-            attach(joint)
-    for body in mechanism.bodies:
-        if body.name not in children:
-            stars.setdefault(body.name, [])
-    return stars
-
-
-def _breadth_first(mechanism: Mechanism) -> list[Link]:
-    """A breadth-first spanning tree from the ground, listed depth first
-    (createMultiBody renumbers links depth first; this keeps our indices)."""
-    reached, kids, queue = {GROUND}, {}, deque([GROUND])
-    while queue:
-        parent = queue.popleft()
-        for joint in mechanism.joints:
-            if parent in (joint.body_i, joint.body_j):
-                child = joint.body_j if joint.body_i == parent else joint.body_i
-                if child not in reached:
-                    reached.add(child)
-                    kids.setdefault(parent, []).append((joint, parent, child))
-                    queue.append(child)
-
-    def depth_first(parent: str) -> list[Link]:
-        return [item for link in kids.get(parent, []) for item in (link, *depth_first(link[2]))]
-
-    return depth_first(GROUND)
+    #: The multibody joints whose reactions are derived, each with the body
+    #: whose balance gives them (`pybullet_layout.Layout.derived`).
+    derived: tuple[tuple[Joint, str], ...] = ()
 
 
 def side(joint: Joint, body: str) -> tuple[float, float]:
@@ -247,9 +149,10 @@ def build(mechanism: Mechanism, timestep: float, layout: str, t_start: float,
         with native_output_silenced():      # "switched solver" notices from C
             configure_solver(client, timestep, mechanism.gravity)
         pose, rates = state if state is not None else start_state(mechanism, t_start, timestep)
+        plan = plan_layout(mechanism, layout)
         model = Model(client, timestep, BodyHandle(-1, -1), {}, {}, {},
-                      {b.name: b.com for b in mechanism.bodies}, pose)
-        for root, links in plan_layout(mechanism, layout).items():
+                      {b.name: b.com for b in mechanism.bodies}, pose, plan.derived)
+        for root, links in plan.multibodies.items():
             _build_multibody(mechanism, model, root, links, pose, rates)
         _build_constraints(mechanism, model)
         disarm_defaults(mechanism, model)
@@ -329,6 +232,24 @@ def _build_multibody(mechanism: Mechanism, model: Model, root: str, links: list[
         q, qd = _joint_coordinate(mechanism, joint, parent, child, pose, rates)
         p.resetJointState(uid, k, q, qd, physicsClientId=model.client)
         p.enableJointForceTorqueSensor(uid, k, True, physicsClientId=model.client)
+
+
+def drive_force_arm(mechanism: Mechanism, joint: Joint) -> float:
+    """(G − P)×u of a prismatic joint, G body_j's centre of mass, P the
+    joint's point on it, u the axis (in body_j's frame: a constant, as the
+    slide holds the relative angle).
+
+    Why: PyBullet's motor force on a slide acts along the axis through the
+    link's centre of mass, and the joint's sensor leaves it out there; the
+    reference's drive force F acts at P. So where the link is body_j, the
+    sensor's couple about P is the reference's M less the moment of F
+    about G, (G − P)×u·F (measured: that difference to 1e-8 N·m on the
+    slider-driven slider-crank with its centre of mass off the pin); the
+    adapter adds it back."""
+    com = mechanism.body(joint.body_j).com
+    ux, uy = rotate_scalar(-joint.held_angle, joint.axis)
+    rx, ry = com[0] - joint.point_j[0], com[1] - joint.point_j[1]
+    return rx * uy - ry * ux
 
 
 def _joint_coordinate(mechanism: Mechanism, joint: Joint, parent: str, child: str,

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections import ChainMap
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
@@ -19,8 +20,9 @@ from mechval.kinematics import joint_gaps, rigid_velocity, rotate_scalar, slide_
 from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyTorque, Drive, Mechanism, SpringDamper, TorqueLaw
 
 from .base import RawRun, RunInfo, Unrepresentable
-from .pybullet_model import NO_CAP, Model, TreeJoint, build, p, start_state   # p: pybullet, imported quietly there
-from .pybullet_slide import DERIVED_NOTE, NO_EARLIER_STEP, BodyTrack, derived_slides, slide_reaction
+from .pybullet_model import (NO_CAP, Model, TreeJoint, build, drive_force_arm, p,  # p: pybullet, imported quietly there
+                             start_state)
+from .pybullet_slide import NO_EARLIER_STEP, BodyTrack, derived_note, derived_quantities, derived_reaction
 
 #: A body's reading: origin x, y (m), wrapped angle (rad), origin vx, vy
 #: (m/s), ω (rad/s), world axes. The ground is always at rest.
@@ -71,16 +73,16 @@ def run_model(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, An
     if stepper.joint_torques:
         info["torque_laws"] = "; ".join(t.describe() for t in stepper.joint_torques)
     missing = {}
-    slides = derived_slides(mechanism)
+    derived = {joint.name for joint, _ in model.derived}
     for name, tree_joint in model.tree_joints.items():
         if (tree_joint.joint.kind == "prismatic" and tree_joint.child != tree_joint.joint.body_j
-                and tree_joint.joint not in slides):
+                and name not in derived):
             frame[f"{name}.M"] = np.nan
             missing[f"{name}.M"] = "the slide's sensor is on body_i: its couple is about body_i's point, not converted"
-    if slides:
-        info["derived_reactions"] = "; ".join(DERIVED_NOTE.format(joint=j.name, body=j.body_j) for j in slides)
-    if slides and preroll == 0:
-        missing.update({f"{j.name}.{q}": NO_EARLIER_STEP for j in slides for q in ("Fx", "Fy", "M")})
+    if model.derived:
+        info["derived_reactions"] = "; ".join(derived_note(joint, body) for joint, body in model.derived)
+    if model.derived and preroll == 0:
+        missing.update({f"{j.name}.{q}": NO_EARLIER_STEP for j, _ in model.derived for q in derived_quantities(j)})
     return RawRun(frame, missing, RunInfo.of(info))
 
 
@@ -144,7 +146,8 @@ def drive_coordinate(mechanism: Mechanism, drive: Drive, frame: pd.DataFrame) ->
     joint = mechanism.joint(drive.joint)
     if joint.kind == "prismatic":
         return np.asarray(slide_motion(frame, joint)["s"], dtype=float)
-    return np.asarray(frame[f"{joint.body_j}.theta"] - (0.0 if joint.body_i == GROUND else frame[f"{joint.body_i}.theta"]))
+    angle = lambda body: 0.0 if body == GROUND else frame[f"{body}.theta"]   # noqa: E731 (either may be the ground)
+    return np.asarray(angle(joint.body_j) - angle(joint.body_i), dtype=float)
 
 
 def step_plan(times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, int, int]:
@@ -160,12 +163,14 @@ def step_plan(times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, in
 class Motor:
     """One drive as PyBullet runs it: the position-controlled multibody joint
     of its joint, and the sign of its coordinate (+1 when the link is the
-    joint's body_j: q = θj − θi or s; −1 when it is body_i)."""
+    joint's body_j: q = θj − θi or s; −1 when it is body_i). `arm`: a
+    slide drive's `drive_force_arm` where its link is body_j, else 0."""
 
     drive: Drive
     joint: TreeJoint
     sign: float
     column: str
+    arm: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -208,8 +213,9 @@ class Stepper:
         for d in mechanism.drives:
             joint = mechanism.joint(d.joint)
             tree_joint = model.tree_joints[joint.name]
-            self.motors.append(Motor(d, tree_joint, 1.0 if tree_joint.child == joint.body_j else -1.0,
-                                     d.effort_column(joint.kind)))
+            on_body_j = tree_joint.child == joint.body_j
+            arm = drive_force_arm(mechanism, joint) if joint.kind == "prismatic" and on_body_j else 0.0
+            self.motors.append(Motor(d, tree_joint, 1.0 if on_body_j else -1.0, d.effort_column(joint.kind), arm))
         self.joint_torques: list[JointTorque] = []
         controlled = {m.joint.joint.name for m in self.motors}
         for law in mechanism.torque_drives:
@@ -223,7 +229,6 @@ class Stepper:
         self.damped = mechanism.damped_joints
         self.springs = tuple(f for f in mechanism.forces if isinstance(f, SpringDamper))
         self.torques = tuple(f for f in mechanism.forces if isinstance(f, BodyTorque))
-        self.slides = derived_slides(mechanism)
         #: External loads applied in the current step, per body: force x, y
         #: and its moment about the world origin.
         self.loads: dict[str, list[float]] = {}
@@ -248,9 +253,9 @@ class Stepper:
         sampled_at = lambda n: n >= self.preroll and (n - self.preroll) % self.per_sample == 0  # noqa: E731
         for n in range(total):
             sampled = sampled_at(n)
-            # A derived slide reaction needs the positions one step before
-            # each sample (pybullet_slide).
-            if sampled or every_step or (self.slides and sampled_at(n + 1)):
+            # A derived reaction needs the positions one step before each
+            # sample (pybullet_slide).
+            if sampled or every_step or (self.model.derived and sampled_at(n + 1)):
                 previous, state = state, self.read_bodies()
             if sampled:
                 before.append(state)
@@ -276,8 +281,8 @@ class Stepper:
                 after.append(self.read_bodies())
                 reactions.append(self.read_reactions())
         frame = self.assemble(before, after, reactions)
-        if self.slides:
-            frame = frame.assign(**self.slide_reactions(frame, earlier, before, after, loads))
+        if self.model.derived:
+            frame = frame.assign(**self.derived_reactions(frame, earlier, before, after, loads))
         return frame, total
 
     def read_bodies(self) -> dict[str, BodyState]:
@@ -427,6 +432,8 @@ class Stepper:
         for motor in self.motors:
             h = motor.joint.handle
             out[motor.column] = motor.sign * p.getJointState(h.uid, h.link, physicsClientId=self.c)[3]
+            if motor.arm:
+                out[f"{motor.drive.joint}.M"] += motor.arm * out[motor.column]
         for jt in self.joint_torques:
             if jt.joint is None:
                 out[jt.column] = self.applied[jt.column]
@@ -437,17 +444,18 @@ class Stepper:
             out[jt.column] = jt.sign * p.getJointState(h.uid, h.link, physicsClientId=self.c)[2][5]
         return out
 
-    def slide_reactions(self, frame: pd.DataFrame, earlier: list, before: list, after: list,
-                        loads: list) -> dict[str, np.ndarray]:
-        """Every derived slide's F and M (pybullet_slide), replacing the
-        sensor's reading."""
-        columns = {}
-        for joint in self.slides:
-            b = joint.body_j
-            track = BodyTrack(np.array([s[b] if s else (np.nan,) * 6 for s in earlier]),
-                              np.array([s[b] for s in before]), np.array([s[b] for s in after]))
-            applied = np.array([step.get(b, (0.0, 0.0, 0.0)) for step in loads])
-            columns.update(slide_reaction(self.mech, joint, track, frame, applied, self.dt))
+    def derived_reactions(self, frame: pd.DataFrame, earlier: list, before: list, after: list,
+                          loads: list) -> dict[str, np.ndarray]:
+        """Every derived joint's reaction (pybullet_slide), replacing the
+        sensor's reading; each sees those derived before it."""
+        tracks = {b: BodyTrack(np.array([s[b] if s else (np.nan,) * 6 for s in earlier]),
+                               np.array([s[b] for s in before]), np.array([s[b] for s in after]))
+                  for b in (body.name for body in self.mech.bodies)}
+        columns: dict[str, np.ndarray] = {}
+        for joint, body in self.model.derived:
+            applied = np.array([step.get(body, (0.0, 0.0, 0.0)) for step in loads])
+            columns.update(derived_reaction(self.mech, joint, body, tracks, ChainMap(columns, frame),
+                                            applied, self.dt))
         return columns
 
     def assemble(self, before: list, after: list, reactions: list) -> pd.DataFrame:

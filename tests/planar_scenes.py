@@ -1,7 +1,10 @@
 """Planar files that use what the four closed-form kinds cannot, for the
 engines' planar tests (tests/planar_contract.py and the per-engine
-tests/test_<engine>_planar.py): two drives, a prismatic drive, a
-spring-damper between two moving links, body torques, a two-loop six-bar.
+tests/test_<engine>_planar.py): two drives, a prismatic drive (also with
+the slider's centre of mass off its joint point), a spring-damper between
+two moving links, body torques, a two-loop six-bar, a five-bar driven at a
+pin between two moving links, a Scotch yoke (a slide on a slide), a joint
+that lists the ground second.
 
 Each scene is short (≤ 1 s, ≤ 161 samples) and its lengths are derived
 here, not taken from a source; assembly poses are worked out by hand
@@ -14,6 +17,7 @@ prints each engine's worst signals on each.
 from __future__ import annotations
 
 import tomllib
+from pathlib import Path
 
 from mechval.scenarios import parse
 
@@ -274,8 +278,114 @@ end = 0.8
 samples = 161
 """
 
+
+
+def _edited(text: str, *edits: tuple[str, str]) -> str:
+    """`text` with each (old, new) replaced; each old must be there."""
+    for old, new in edits:
+        assert old in text, old
+        text = text.replace(old, new)
+    return text
+
+
+#: The slider-driven slider-crank with the slider's centre of mass off the
+#: joint point, an axis not of unit length (the same direction, twice as
+#: long) and the slider's frame held level (`angle = 0`) instead of along
+#: the tilted guide: the guide's couple M then carries the moment of the
+#: drive force F, taken at the joint point, about the centre of mass
+#: (PyBullet's sensor left it out: 42× the bound on M before the fix).
+SLIDER_DRIVEN_OFFSET = _edited(
+    SLIDER_DRIVEN, ('name = "slider-driven-slider-crank"', 'name = "slider-driven-offset-com"'),
+    ("com = [0.0, 0.0]", "com = [0.03, -0.02]"), ("axis = [0.96, 0.28]", "axis = [1.92, 0.56]\nangle = 0.0"),
+    ("slider = 0.2838", "slider = 0.0"))
+
+#: FIVE_BAR driven at O1 and at the pin A between its two moving links L1
+#: and L2 instead of at O4: A's law is a quadratic fitted to the relative
+#: angle θL2 − θL1 of FIVE_BAR's reference over its first second (−1.316 −
+#: 5.8·t + 3.3·t², rounded), so the loop follows nearly FIVE_BAR's motion;
+#: the run stops at 0.6 s, as the loop locks just after 0.647 s with this
+#: law (the reference refuses a longer one).
+FIVE_BAR_PIN_DRIVEN = _edited(
+    FIVE_BAR, ('name = "two-drive-five-bar"', 'name = "pin-driven-five-bar"'),
+    ('joint = "O4"\nphi0 = 2.0\nomega0 = 1.5\nalpha = 1.0', 'joint = "A"\nphi0 = -1.316\nomega0 = -5.8\nalpha = 6.6'),
+    ("end = 1.0\nsamples = 101", "end = 0.6\nsamples = 61"))
+
+#: A Scotch yoke: the crank's pin A carries a block that slides in the
+#: yoke's slot (along the yoke's y axis), and the yoke slides on a damped
+#: horizontal guide, so the yoke's x is 0.1·cos φ. The yoke's centre of mass
+#: is off its guide point; the block's frame is held along the slot.
+#: Assembly by hand: block at 90°, yoke level; nothing locks (the slot is
+#: always across the guide).
+SCOTCH_YOKE = """
+name = "scotch-yoke-damped"
+mechanism = "planar"
+[ground]
+O = [0.0, 0.0]
+[[body]]
+name = "crank"
+mass = 1.0
+length = 0.1
+[[body]]
+name = "block"
+mass = 0.2
+com = [0.0, 0.0]
+izz = 1e-4
+points = { pin = [0.0, 0.0] }
+[[body]]
+name = "yoke"
+mass = 2.0
+com = [0.15, 0.02]
+izz = 0.02
+points = { slot = [0.0, 0.0] }
+[[joint]]
+name = "O2"
+type = "revolute"
+between = ["ground.O", "crank.start"]
+[[joint]]
+name = "A"
+type = "revolute"
+between = ["crank.end", "block.pin"]
+[[joint]]
+name = "guide"
+type = "prismatic"
+between = ["ground.O", "yoke.slot"]
+axis = [1.0, 0.0]
+damping = 5.0
+[[joint]]
+name = "slot"
+type = "prismatic"
+between = ["yoke.slot", "block.pin"]
+axis = [0.0, 1.0]
+[[drive]]
+joint = "O2"
+phi0 = 0.3
+omega0 = 6.0
+alpha = 2.0
+[assembly]
+crank = 0.3
+block = 1.5708
+yoke = 0.0
+[effects]
+gravity = [0.0, -9.81]
+[time]
+end = 1.0
+samples = 101
+"""
+
+#: The planar twin of the built-in slider-crank with its ground pin written
+#: the other way round, `between = ["crank.start", "ground.O2"]`, and its
+#: drive reversed to keep the motion (θground − θcrank = −10·t): O2's
+#: reaction is then the force by the crank on the ground and O2.T the
+#: torque on the ground, minus the twin's (Newton's third law). 0.5 s.
+TWIN = (Path(__file__).parent.parent / "scenarios" / "planar-twins" / "slider-crank.toml").read_text()
+GROUND_SECOND = _edited(
+    TWIN, ('name = "slider-crank-planar"', 'name = "slider-crank-ground-second"'),
+    ('between = ["ground.O2", "crank.start"]', 'between = ["crank.start", "ground.O2"]'),
+    ("omega0 = 10.0", "omega0 = -10.0"), ("end = 2.0\nsamples = 401", "end = 0.5\nsamples = 101"))
+
 SCENES = {"five-bar": FIVE_BAR, "slider-driven": SLIDER_DRIVEN, "spring": FOURBAR_SPRING,
-          "torque": FOURBAR_TORQUE, "six-bar": SIX_BAR}
+          "torque": FOURBAR_TORQUE, "six-bar": SIX_BAR, "slider-driven-offset-com": SLIDER_DRIVEN_OFFSET,
+          "pin-driven-five-bar": FIVE_BAR_PIN_DRIVEN, "scotch-yoke": SCOTCH_YOKE, "ground-second": GROUND_SECOND}
 
 
 def scene(name: str):

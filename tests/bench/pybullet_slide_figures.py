@@ -33,13 +33,13 @@ SLIDE = ("F43x", "F43y", "N43", "M43")
 def ratios(scenario, overrides, sensor: bool):
     """Ratio per signal against the scenario's own (default) tolerances;
     `sensor` skips the derivation, leaving the sensor's reading."""
-    derive = adapter_module.Stepper.slide_reactions
+    derive = adapter_module.Stepper.derived_reactions
     if sensor:
-        adapter_module.Stepper.slide_reactions = lambda self, *args: {}
+        adapter_module.Stepper.derived_reactions = lambda self, *args: {}
     try:
         result = simulate(scenario, adapter("pybullet"), overrides)
     finally:
-        adapter_module.Stepper.slide_reactions = derive
+        adapter_module.Stepper.derived_reactions = derive
     records = compare(simulate_reference(scenario), result, scenario.tolerance, scenario=scenario.name)
     records = records[records["class"].isin(["force", "torque"])].set_index("signal")["ratio"]
     return records, result.info.facts["timestep_used"]

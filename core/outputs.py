@@ -103,18 +103,19 @@ def write_folder_atomically(out: str | os.PathLike, fill) -> Path:
         fcntl.flock(lock, fcntl.LOCK_EX)
         os.chmod(tmp, 0o777 & ~current_umask())     # mkdtemp's 0700, as a plain mkdir would make it
         fill(tmp)
+        # A rename onto a folder that another command has just written
+        # fails naming the temporary folder: say what happened instead.
         if os.path.lexists(out):
-            raise FileExistsError(f"{out} exists (written meanwhile by another command); choose another "
-                                  "--out or remove it")
+            raise FileExistsError(errno.EEXIST, "written meanwhile by another command", str(out))
         os.replace(tmp, out)
     except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
-        if isinstance(exc, OSError) and not isinstance(exc, FileExistsError):
-            if os.path.lexists(out):    # another command's folder took the name first
-                raise FileExistsError(f"{out} exists (written meanwhile by another command); choose another "
-                                      "--out or remove it") from None
-            raise _naming(exc, out, tmp) from None
-        raise
+        if not isinstance(exc, OSError):
+            raise
+        if os.path.lexists(out):
+            raise FileExistsError(f"{out} exists (written meanwhile by another command); choose another "
+                                  "--out or remove it") from None
+        raise _naming(exc, out, tmp) from None
     finally:
         os.close(lock)
     return out

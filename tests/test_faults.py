@@ -1,6 +1,10 @@
 """Stopping a run: SIGINT, SIGTERM and SIGKILL of `mechval` while an engine
 is busy, and SIGKILL of a busy worker. After each: the exit status, no
-process of the run left, no folder left behind.
+process of the run left, no folder left behind. Then faults of the places
+written (docs/comparison.md, "Output files"): a --csv that is a FIFO or a
+symlink, a full disk, a report folder written meanwhile, a symlink loop
+on the way, a report writer killed outright, a scenario name that a
+spreadsheet takes for a formula.
 
 The engine is the stand-in `busy`: it spins on the CPU and ignores SIGTERM,
 as an engine busy in C code does. `mechval run` runs as a command

@@ -168,8 +168,15 @@ class EngineAdapter(ABC):
         """Derived defaults, then the scenario's [engines.NAME] table, then
         explicit overrides. An unknown key, a value `settings_spec` refuses
         (type, range, choices), or a step that does not divide the sample
-        interval is refused with the file and key, before any run."""
-        settings = self.default_settings(mechanism, scenario.time.t)
+        interval is refused with the file and key, before any run. So is a
+        scene whose defaults cannot be derived (Unrepresentable: the step
+        rule of a torque-driven or free scene integrates its motion, which
+        may leave float64's range): every command resolves settings here
+        first, so none of them lets that refusal escape as a traceback."""
+        try:
+            settings = self.default_settings(mechanism, scenario.time.t)
+        except Unrepresentable as exc:
+            raise ScenarioError(scenario.source, exc.key, f"{self.name}: {exc.reason}") from None
         for origin, table in (("file", scenario.settings_for(self.name)), ("override", overrides or {})):
             source = scenario.source if origin == "file" else "settings override"
             for key, value in table.items():

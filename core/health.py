@@ -112,13 +112,21 @@ def energy_health(mech: Mechanism, raw) -> dict[str, np.ndarray]:
     energy = kinetic + potential
     power = applied_power(mech, raw)
     done = np.zeros(len(t)) if conservative(mech) else work(t, power)
-    scale = max(float(np.nanmax(kinetic)), float(np.nanmax(np.abs(potential - potential[0]))),
-                float(np.nanmax(np.abs(done))))
+    scale = max(peak_of(kinetic), peak_of(np.abs(potential - potential[0])), peak_of(np.abs(done)))
     scale = scale if scale > 0 else np.nan     # nothing moves: no energy to judge a drift by
     residual = np.abs(energy - energy[0] - done) / scale
     quadrature = np.zeros(len(t)) if conservative(mech) else work_error(t, power) / scale
     name = "energy_drift" if conservative(mech) else "energy_balance"
     return {name: residual, "energy": energy, "work": done, "energy_quadrature": quadrature}
+
+
+def peak_of(values) -> float:
+    """The largest value, NaN left out; NaN if every value is NaN (a run
+    that blew up from its start: its failure is reported once, without
+    numpy's All-NaN warning before it)."""
+    values = np.asarray(values, dtype=float)
+    values = values[~np.isnan(values)]
+    return float(values.max()) if values.size else np.nan
 
 
 def health(mech: Mechanism, raw: pd.DataFrame, missing: Mapping[str, str] = ()) -> pd.DataFrame:
@@ -139,9 +147,9 @@ def health(mech: Mechanism, raw: pd.DataFrame, missing: Mapping[str, str] = ()) 
         reference = side[0] if mech.forward_dynamics else np.sign(mech.assembly(mech.motion(t)))
         result["assembly_flip"] = (side != reference).astype(int)
     power, rate = power_balance(mech, raw)
-    peak = float(np.nanmax(np.abs(power)))
+    peak = peak_of(np.abs(power))
     if not (mech.drives or mech.torque_drives):
-        peak = float(np.nanmax(np.abs(kinetic_rate(mech, raw))))
+        peak = peak_of(np.abs(kinetic_rate(mech, raw)))
     # At rest (a free scene released at an equilibrium) there is no power to
     # scale by: the residual is then undefined, not rounding over 1e-300.
     # A prescribed scene held still keeps the old floor (its residual is then

@@ -10,8 +10,6 @@ frame and empty cells in CSV; nothing is ever invented to fill them.
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -23,6 +21,9 @@ from .adapter import RunInfo
 from .engine_inputs import RecordedInputs
 from .kinematics import point_motion, slide_axis, slide_motion
 from .mechanism import Mechanism
+# Re-exported: the harness and reports write signals, baselines and report
+# folders through them (mechval.outputs).
+from .outputs import current_umask, write_atomically, write_folder_atomically  # noqa: F401
 from .resultants import body_resultants, resultant_columns, resultant_inputs
 
 COMMON_SIGNALS = (
@@ -228,43 +229,3 @@ def with_resultant_columns(mechanism: Mechanism, raw: pd.DataFrame,
     if reasons:
         missing = {**missing, **{c: reasons[0] for c in wanted}}
     return raw.assign(**body_resultants(mechanism, raw)), missing
-
-
-def write_folder_atomically(out: str | os.PathLike, fill) -> Path:
-    """Call fill(folder) on a temporary sibling of `out` (which must not
-    exist yet), then rename it to `out`: an interrupted write leaves nothing."""
-    out = Path(out)
-    if out.exists():
-        raise FileExistsError(f"{out} exists; choose another --out or remove it")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        os.chmod(tmp, 0o777 & ~current_umask())     # mkdtemp's 0700, as a plain mkdir would make it
-        fill(tmp)
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
-
-
-def write_atomically(path: str | os.PathLike, write) -> None:
-    """Call write(file) on a temporary sibling of path, then rename it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", newline="") as f:
-            os.fchmod(fd, 0o666 & ~current_umask())  # mkstemp's 0600, as a plain open would make it
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def current_umask() -> int:
-    """The process's umask (reading it means setting it: restored at once)."""
-    mask = os.umask(0o077)
-    os.umask(mask)
-    return mask

@@ -27,6 +27,7 @@ from mechval.reports.audit import audit_section
 from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
 from mechval.outcome import Outcome
+from mechval.outputs import not_a_regular_file
 from mechval.scenario import Scenario, ScenarioError, one_line
 from mechval.scenarios import builtin_names, load
 from mechval.signals import SIGNAL_CLASS, Signals
@@ -94,9 +95,10 @@ def _check_writable(folder: Path, what: Path) -> None:
     """Refuse, before any work, to run when `what` could not be written into
     `folder` (or into the folder it would be created in)."""
     existing = folder.absolute()
-    while not existing.exists() and existing != existing.parent:
+    while not os.path.lexists(existing) and existing != existing.parent:
         existing = existing.parent
     try:
+        os.stat(existing)       # a symlink that loops or leads nowhere: refused now, not after the engines ran
         if not existing.is_dir():
             raise NotADirectoryError(20, "not a folder", str(existing))
         with tempfile.TemporaryFile(dir=existing):      # a real try: permissions, read-only file systems
@@ -107,9 +109,19 @@ def _check_writable(folder: Path, what: Path) -> None:
 
 def _check_out_dir(out: Path) -> None:
     """A report folder must not exist yet and its parent must take it."""
-    if out.exists() or out.is_symlink():
+    if os.path.lexists(out):
         raise UsageError(f"{out} exists; choose another --out or remove it")
     _check_writable(out.parent, out)
+
+
+def _check_csv(csv: Path) -> None:
+    """A CSV is written by renaming over its path: refuse a path that is
+    not a regular file (a device, a FIFO, a symlink, a folder) rather than
+    replace it, and a folder that would not take it."""
+    _check_writable(csv.parent, csv)
+    kind = not_a_regular_file(csv)
+    if kind:
+        raise UsageError(f"cannot write {csv}: it is {kind}, and mechval replaces only regular files")
 
 
 def cmd_list(args) -> int:
@@ -127,10 +139,8 @@ def cmd_list(args) -> int:
 
 def cmd_simulate(args) -> int:
     scenario = _load(args.scenario)
+    _check_csv(args.csv)
     _check_runs([(scenario, args.engine, None)], _limits(args))
-    if args.csv.is_dir():
-        raise UsageError(f"cannot write {args.csv}: it is a folder")
-    _check_writable(args.csv.parent, args.csv)
     try:
         signals = simulate(scenario, args.engine)
     except (ScenarioError, EngineUnavailable, UnknownEngine, KeyboardInterrupt):

@@ -106,7 +106,8 @@ class SchedulerUnreachable(RuntimeError):
 def dask_address_problem(address: str) -> str:
     """Why `address` is not a Dask scheduler address, or "" if it is one:
     SCHEME://HOST:PORT (or HOST:PORT, meaning tcp), the scheme one Dask
-    knows; inproc://… addresses (a scheduler in this process) as they are."""
+    knows; inproc://HOST/PID/N (a scheduler inside this very process, as
+    an in-process test starts) only with this process's PID."""
     from distributed.comm import parse_address
     from distributed.comm.registry import backends
     if not address.strip():
@@ -115,6 +116,12 @@ def dask_address_problem(address: str) -> str:
     if scheme not in backends:
         return f"unknown scheme {scheme!r} (known: {', '.join(sorted(backends))})"
     if scheme == "inproc":
+        parts = location.split("/")
+        if len(parts) != 3 or not parts[1].isdigit() or not parts[2].isdigit():
+            return "expected inproc://HOST/PID/N, the address of a scheduler inside this process"
+        if int(parts[1]) != os.getpid():
+            return (f"an inproc:// address names a scheduler inside process {parts[1]}, and this is process "
+                    f"{os.getpid()}: give the scheduler's tcp://HOST:PORT")
         return ""
     host, colon, port = location.rpartition(":")
     if not colon or not host.strip("[]"):

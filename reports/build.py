@@ -25,6 +25,7 @@ from mechval.scenario import Scenario, one_line
 from mechval.signals import Signals, write_folder_atomically
 
 from . import plots, runs
+from .csv_files import write_csv
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 #: The columns of a run's records on the page (its heading names the
@@ -255,7 +256,7 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
             record_columns=RECORD_COLUMNS, text_columns=TEXT_COLUMNS, extra_sections=extra_sections,
             per_figure=plots.SIGNALS_PER_FIGURE, scripts=plots.page_scripts())
         (folder / "index.html").write_text(html, encoding="utf-8")
-        records.to_csv(folder / "discrepancies.csv", index=False, float_format="%.17g")
+        write_csv(records, folder / "discrepancies.csv")
         runs.write_runs_csv(folder / "runs.csv", outcomes)
         (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta, references), encoding="utf-8")
         for name, write in (extra_files or {}).items():

@@ -21,6 +21,7 @@ from mechval.cost_tables import CLASS_ORDER, HEADLINE, MIN_ORDER, ORDER_SPREAD, 
 from mechval.signals import write_folder_atomically
 
 from .build import Section, anchor, provenance
+from .csv_files import write_csv
 from .plots import colours, page_scripts
 
 ANCHOR = "cost"
@@ -155,8 +156,9 @@ def cost_section(table: pd.DataFrame, orders: pd.DataFrame, cheap: pd.DataFrame)
 
 
 def write_table(table: pd.DataFrame, path: Path) -> None:
-    """Full precision (%.17g); NaN as an empty cell."""
-    table.to_csv(path, index=False, float_format="%.17g", na_rep="")
+    """Full precision (%.17g); NaN as an empty cell; text a spreadsheet
+    would take for a formula neutralised (reports.csv_files)."""
+    write_csv(table, path)
 
 
 def write_cost_report(out: Path, table: pd.DataFrame, orders: pd.DataFrame, cheap: pd.DataFrame) -> Path:

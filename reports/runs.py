@@ -20,6 +20,8 @@ from markupsafe import Markup
 
 from mechval.outcome import Outcome
 
+from .csv_files import neutralised
+
 #: The setting that is the time step (every adapter's `step_setting`, or
 #: none); it and the step count lead every table.
 STEP_SETTING = "timestep"
@@ -156,18 +158,26 @@ def write_runs_csv(path: Path, outcomes: Iterable[Outcome]) -> None:
     """Every run's settings and facts, one per line (kind "setting",
     "fact" or "error"), floats with `repr` (they round-trip)."""
     with path.open("w", newline="", encoding="utf-8") as stream:
-        writer = csv.writer(stream)
+        # As the report's other CSV files (`csv_files`): text that a
+        # spreadsheet would take for a formula is neutralised, numbers not.
+        writer = csv.writer(stream, lineterminator="\r\n")
         writer.writerow(CSV_COLUMNS)
         for o in outcomes:
-            head = [o.task.scenario.name, o.task.engine, o.task.setting, o.signals.version if o.signals else ""]
+            head = [neutralised(str(v)) for v in
+                    (o.task.scenario.name, o.task.engine, o.task.setting, o.signals.version if o.signals else "")]
             if o.signals is None:
-                writer.writerow(head + ["error", "", o.error])
+                writer.writerow(head + ["error", "", neutralised(o.error)])
             items = [("setting", k, v) for k, v in (o.signals.settings if o.signals else {}).items()]
             items += [("fact", k, v) for k, v in _facts(o).items() if v is not None]
-            writer.writerows(head + [kind, key, repr(v) if isinstance(v, float) else _csv_text(v)]
-                             for kind, key, v in items)
+            writer.writerows(head + [kind, neutralised(key), _csv_value(v)] for kind, key, v in items)
 
 
-def _csv_text(value: Any) -> str:
-    return ("true" if value else "false") if isinstance(value, bool) else str(value)
+def _csv_value(value: Any) -> str:
+    """A float with `repr` (it round-trips), a number as it is, text
+    neutralised."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    return neutralised(str(value))
 

@@ -25,7 +25,7 @@ from mechval.scenario import LinkMass, Scenario, ScenarioError, TimeGrid, Tolera
 
 from .dynamic import check_initial_state
 from .planar import parse_planar
-from .tables import MAX_MAGNITUDE, Reader, engine_tables, shown, tolerance
+from .tables import MAX_MAGNITUDE, Reader, engine_tables, scenario_name, shown, tolerance
 
 HERE = Path(__file__).resolve().parent
 #: The crank's pivot joint in every closed-form kind's Mechanism.
@@ -48,13 +48,20 @@ def builtin_path(name: str) -> Path:
     return HERE / f"{name}.toml"
 
 
+#: A built-in name: plain names (letters, digits, _ . -, not starting with
+#: . or -) joined by /, so that it names a file under scenarios/ and no
+#: other (`../../x` is no built-in name: a path outside needs its .toml).
+BUILTIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*(/[A-Za-z0-9_][A-Za-z0-9_.-]*)*")
+
+
 def load(name_or_path: str | Path, engines: Collection[str] | None = None) -> Scenario:
-    """Load a built-in scenario by name, or a scenario file by path
-    (`engines`: see `parse`)."""
+    """Load a built-in scenario by name (BUILTIN_NAME), or a scenario file
+    by path (`engines`: see `parse`)."""
     text = str(name_or_path)
     path = Path(text)
     try:
-        if not path.suffix and not path.exists() and builtin_path(text).exists():
+        if (not path.suffix and not path.exists() and BUILTIN_NAME.fullmatch(text)
+                and builtin_path(text).exists()):
             path = builtin_path(text)
         found = path.is_file()
     except OSError as exc:              # e.g. a folder on the way that may not be searched
@@ -116,7 +123,7 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
         return parse_planar(data, source, engines)
     top = Reader(source, "", data)
     top.only(TOP_KEYS)
-    name = top.string("name")
+    name = scenario_name(top)
     kind = top.string("mechanism", choices=(*LINKAGES, "planar"))
     description = top.string("description", default="")
     tags = data.get("tags", [])

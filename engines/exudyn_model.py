@@ -359,11 +359,35 @@ def simulation_settings(settings: Mapping[str, Any], duration: float, dt: float)
 
 def solve(model: ExudynModel, simulation: exu.SimulationSettings,
           solver: str) -> exu.MainSolverImplicitSecondOrder:
-    """Run the solver with Exudyn's console output off; raise on failure."""
+    """Run the solver with Exudyn's console output off; raise on failure.
+
+    A stop signal (KeyboardInterrupt, the harness's `Interrupted`) raised
+    inside a user function reaches the caller as itself, not as the
+    `ModelError` Exudyn wraps it in ("Error in Python USER FUNCTION"):
+    Exudyn turns every exception of a user function into its own, keeping
+    the original as the cause."""
     printing = exu.config.printToConsole
     exu.config.printToConsole = False
     try:
         model.mbs.SolveDynamic(simulation, solverType=SOLVERS[solver], storeSolver=True)
+    except Exception as failure:
+        stop = _stop_inside(failure)
+        if stop is not None:
+            raise stop from None
+        raise
     finally:
         exu.config.printToConsole = printing
     return model.mbs.sys["dynamicSolver"]
+
+
+def _stop_inside(failure: BaseException) -> BaseException | None:
+    """The first exception in the failure's chain of causes that is not an
+    `Exception` (a KeyboardInterrupt or SystemExit), if any."""
+    seen = set()
+    cause = failure.__cause__ or failure.__context__
+    while cause is not None and id(cause) not in seen:
+        if not isinstance(cause, Exception):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None

@@ -202,9 +202,12 @@ class ExudynAdapter(EngineAdapter):
                                                     bool(settings["compute_initial_accelerations"]))
         info = {
             "steps": len(t_all) - 1,
-            "pre_roll_start": t0, "newton_iterations": int(solver.it.newtonStepsCount),
+            "pre_roll_start": t0, "pre_roll_steps_used": int(round((times[0] - t0) / float(settings["timestep"]))),
+            "newton_iterations": int(solver.it.newtonStepsCount),
             "jacobian_updates": int(solver.it.newtonJacobiCount),
             "closure_gap_max": float(gap.max()), "drive_error_max": float(drive_error.max()),
             "build_time_s": build_time, "wall_time_s": wall_time,
         }
+        if settings["solver"] == "index3":       # lowered after a shortened pre-roll (`prepare`)
+            info["spectral_radius_used"] = simulation.timeIntegration.generalizedAlpha.spectralRadius
         return RawRun(frame, missing, RunInfo.of(info))

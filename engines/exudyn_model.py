@@ -104,9 +104,10 @@ def start_state(mechanism: Mechanism, t0: float) -> pd.DataFrame:
     return start
 
 
-def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
+def build_model(mechanism: Mechanism, t0: float, start: pd.DataFrame | None = None) -> ExudynModel:
     """The Exudyn model of `mechanism`, in the reference state at t0
-    (`start_state`); the solver's time 0 is t0.
+    (`start`, raw motion columns of that one instant; by default
+    `start_state`); the solver's time 0 is t0.
 
     Reference coordinates are the reference pose at t0 and initial
     velocities the reference velocities, so the start is consistent; the
@@ -116,7 +117,7 @@ def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
     """
     system = exu.SystemContainer()
     mbs = system.AddSystem()
-    start = start_state(mechanism, t0)
+    start = start_state(mechanism, t0) if start is None else start
     model = ExudynModel(system, mbs, start)
 
     ground = mbs.AddObject(eii.ObjectGround())

@@ -14,7 +14,9 @@ import pandas as pd
 
 from mechval.health import drive_errors
 from mechval.kinematics import joint_gaps, point_motion, rotate
-from mechval.mechanism import GROUND, MOTION_QUANTITIES, Mechanism
+from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyPose, Mechanism
+from mechval.planar_scene import SolvedMotion
+from mechval.planar_solver import raw_planar
 
 from .exudyn_model import SOLVERS, ExudynModel, build_model, simulation_settings
 
@@ -22,6 +24,10 @@ from .exudyn_model import SOLVERS, ExudynModel, build_model, simulation_settings
 #: steps, whatever the step (docs/engines.md); the pre-roll lets it decay
 #: by this factor.
 INDEX3_TRANSIENT_DECAY = 1e-8
+#: Relative (and absolute, for values near 0) agreement of the pre-roll's
+#: motion at the first sample with the run's reference there: the same
+#: branch agrees to the solvers' rounding (~1e-12), another differs by O(1).
+SAME_STATE = 1e-6
 NO_PRISMATIC_COUPLE = "Exudyn 1.13.6 reports no couple of ObjectJointPrismatic2D (ForceLocal[2] stays 0)"
 UNSOLVED_START = ("Exudyn 1.13.6 reports zero reactions at its first instant unless its own initial-acceleration "
                   "solve ran (compute_initial_accelerations), and a run with no pre-roll starts at the first sample")
@@ -31,7 +37,9 @@ def prepare(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]
             ) -> tuple[ExudynModel, exu.SimulationSettings, float]:
     """The model, the solver settings and the start t0 = times[0] minus the
     pre-roll (none for a torque-driven or free mechanism: its motion is
-    known only from times[0] on); the solver's time 0 is t0."""
+    known only from times[0] on; shortened where the reference cannot
+    close the loop that early, `pre_roll_start`); the solver's time 0 is
+    t0."""
     if settings["solver"] not in SOLVERS:
         raise ValueError(f"exudyn: solver must be one of {tuple(SOLVERS)}, got {settings['solver']!r}")
     dt = float(settings["timestep"])
@@ -43,10 +51,78 @@ def prepare(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]
         # At its first instant Exudyn reports zero reactions and echoes the
         # supplied accelerations: t = 0 must be a solved step.
         raise ValueError(f"exudyn: pre_roll_steps must be at least 1, got {pre_roll}")
-    if settings["solver"] == "index3" and pre_roll:
+    index3 = settings["solver"] == "index3"
+    if index3 and pre_roll:
         pre_roll = max(pre_roll, index3_transient_steps(float(settings["spectral_radius"])))
+    pre_roll, start = pre_roll_start(mechanism, times, pre_roll, dt)
+    if index3 and pre_roll:
+        settings = {**settings, "spectral_radius": index3_spectral_radius(float(settings["spectral_radius"]), pre_roll)}
     t0 = float(times[0]) - pre_roll * dt
-    return build_model(mechanism, t0), simulation_settings(settings, float(times[-1]) - t0, dt), t0
+    return build_model(mechanism, t0, start), simulation_settings(settings, float(times[-1]) - t0, dt), t0
+
+
+def index3_spectral_radius(spectral_radius: float, pre_roll: int) -> float:
+    """The spectral radius of an index-3 run whose pre-roll has `pre_roll`
+    steps: as set, unless that is too few steps for the start-up
+    transient to decay by INDEX3_TRANSIENT_DECAY (a pre-roll shortened by
+    `pre_roll_start`); then lowered so that it does, ρ = DECAY^(1/n): the
+    transient's size grows with the step and near a dead centre, and one
+    left at t = 0 can exceed the default bounds many times over
+    (tests/test_exudyn_pre_roll.py measures it)."""
+    if index3_transient_steps(spectral_radius) <= pre_roll:
+        return spectral_radius
+    return min(spectral_radius, INDEX3_TRANSIENT_DECAY ** (1.0 / pre_roll))
+
+
+def pre_roll_start(mechanism: Mechanism, times: np.ndarray, steps: int, dt: float
+                   ) -> tuple[int, pd.DataFrame | None]:
+    """The longest pre-roll of `steps` steps along φ(t) before times[0],
+    halved (as MuJoCo's adapter does) until the reference closes the loop
+    over it on the run's branch, and the reference state at its start
+    (raw motion columns, one row; None for no pre-roll, when the state is
+    the run's first).
+
+    The scene guarantees closure over the run only: before t = 0 the drive
+    law may leave the range where the loop closes (a run that starts near
+    a dead centre), and a reference that assembles at the pre-roll start
+    from the file's pose (meant for t = 0) may not find it there at all.
+    With no step left the run starts at times[0]: Exudyn then reports zero
+    reactions at that first sample, which are missing with that reason."""
+    if steps == 0:
+        return 0, None
+    first = mechanism.motion(times[:1])
+    while steps:
+        motion = _on_the_run_s_branch(mechanism, float(times[0]) - dt * np.arange(steps, -1, -1), first)
+        if motion is not None:
+            return steps, motion.iloc[:1].reset_index(drop=True)
+        steps //= 2
+    return 0, None
+
+
+def _on_the_run_s_branch(mechanism: Mechanism, t: np.ndarray, first: pd.DataFrame) -> pd.DataFrame | None:
+    """The reference motion at instants t (the last is the run's first
+    instant), or None where the loop does not close at all of them or the
+    motion does not arrive at the run's own first state `first`. The
+    general reference (`SolvedMotion`) is assembled at t[0] from the run's
+    first pose rather than from the file's, so it starts on the run's
+    branch; a closed form holds its branch at every instant."""
+    columns = mechanism.motion_columns()
+    try:
+        with np.errstate(invalid="ignore"):
+            if isinstance(mechanism.motion, SolvedMotion):
+                pose = {b.name: BodyPose(*(float(first[f"{b.name}.{q}"].iloc[0]) for q in ("theta", "x", "y")))
+                        for b in mechanism.bodies}
+                motion = raw_planar(mechanism, t, pose).frame
+            else:
+                motion = mechanism.motion(t)
+    except ValueError:                      # MechanismError: the loop cannot close, or a singular pose
+        return None
+    values, arrival = motion[columns].to_numpy(dtype=float), first[columns].to_numpy(dtype=float)[0]
+    if not np.isfinite(values).all():
+        return None
+    if not np.allclose(values[-1], arrival, rtol=SAME_STATE, atol=SAME_STATE):
+        return None                         # it closed on another branch
+    return motion[["t"] + columns]
 
 
 def index3_transient_steps(spectral_radius: float) -> int:

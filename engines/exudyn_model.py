@@ -315,18 +315,27 @@ class TorqueLawLoad:
         return [0.0, 0.0, self._c + self._a * math.sin(self._w * (t + self.t0) + self._p)]
 
 
+def torque_law_load_names(law: TorqueLaw) -> dict[float, str]:
+    """The names of a torque law's two loads, by sign (+1 on body_j, −1 on
+    body_i): Exudyn refuses a second load of the same name, and a law
+    between two moving bodies has both."""
+    item = torque_law_item(law)
+    return {1.0: f"{item} on body_j", -1.0: f"{item} on body_i"}
+
+
 def _add_torque_law(mbs: exu.MainSystem, mechanism: Mechanism, law: TorqueLaw, objects: dict[str, int],
                     t0: float) -> tuple[int, float]:
     """T(t) on body_j and −T(t) on body_i (`LoadTorqueVector`s named after
-    the law, with `TorqueLawLoad`; none on the ground). Returns the sensor
-    of the first load and its sign."""
+    the law and the side, `torque_law_load_names`, with `TorqueLawLoad`;
+    none on the ground). Returns the sensor of the first load and its sign."""
     joint = mechanism.joint(law.joint)
+    names = torque_law_load_names(law)
     sensors = []
     for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
         if body == GROUND:
             continue
         marker = mbs.AddMarker(eii.MarkerBodyRigid(bodyNumber=objects[body], localPosition=[0.0, 0.0, 0.0]))
-        load = mbs.AddLoad(eii.LoadTorqueVector(name=torque_law_item(law), markerNumber=marker,
+        load = mbs.AddLoad(eii.LoadTorqueVector(name=names[sign], markerNumber=marker,
                                                 loadVector=[0.0, 0.0, 0.0],
                                                 loadVectorUserFunction=TorqueLawLoad(law, sign, t0)))
         sensors.append((mbs.AddSensor(eii.SensorLoad(loadNumber=load, storeInternal=True, writeToFile=False)), sign))

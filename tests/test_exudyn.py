@@ -17,7 +17,7 @@ import andrews as A
 import dynamic_mechanisms as dm
 from contract import ANGLE, AdapterContract, dynamic_errors
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
-from mechval.audit import audit, expected_model, failures, torque_law_item
+from mechval.audit import audit, expected_model, failures
 from mechval.compare import compare, format_records, passed
 from mechval.drive import DriveLaw
 from mechval.dynamics import raw_dynamics
@@ -39,7 +39,7 @@ except ImportError as exc:
 else:
     pytestmark = pytest.mark.engine     # every test here runs Exudyn
     from mechval.engines.exudyn_audit import Reader
-    from mechval.engines.exudyn_model import build_model, simulation_settings, solve
+    from mechval.engines.exudyn_model import build_model, simulation_settings, solve, torque_law_load_names
     from mechval.engines.exudyn_run import prepare
 
 #: fourbar-seed at the default setting: every signal within this fraction
@@ -363,7 +363,7 @@ def test_a_torque_law_is_two_opposite_loads_and_a_free_joint_no_constraint():
     mbs = build_model(mech, 0.0).mbs
     assert "ConnectorCoordinate" not in item_types(mbs)
     loads = [mbs.GetLoad(i) for i in range(mbs.systemData.NumberOfLoads())]
-    motor = [load for load in loads if load["name"] == torque_law_item(mech.torque_drives[0])]
+    motor = [load for load in loads if load["name"] in torque_law_load_names(mech.torque_drives[0]).values()]
     assert [load["loadType"] for load in motor] == ["TorqueVector"]     # O2 joins the crank to the ground
     law = mech.torque_drives[0]
     function = motor[0]["loadVectorUserFunction"]["function"]

@@ -19,6 +19,7 @@ from mechval.planar_scene import SolvedMotion
 from mechval.planar_solver import raw_planar
 
 from .exudyn_model import SOLVERS, ExudynModel, build_model, simulation_settings
+from .exudyn_slide import UNDERIVABLE, slide_couples
 
 #: The index-3 force transient after the start shrinks like ρ^n over n
 #: steps, whatever the step (docs/engines.md); the pre-roll lets it decay
@@ -28,7 +29,6 @@ INDEX3_TRANSIENT_DECAY = 1e-8
 #: motion at the first sample with the run's reference there: the same
 #: branch agrees to the solvers' rounding (~1e-12), another differs by O(1).
 SAME_STATE = 1e-6
-NO_PRISMATIC_COUPLE = "Exudyn 1.13.6 reports no couple of ObjectJointPrismatic2D (ForceLocal[2] stays 0)"
 UNSOLVED_START = ("Exudyn 1.13.6 reports zero reactions at its first instant unless its own initial-acceleration "
                   "solve ran (compute_initial_accelerations), and a run with no pre-roll starts at the first sample")
 
@@ -194,22 +194,39 @@ def frame_of(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str
         else:
             fx, fy = rotate(_theta(motion, joint.body_i)[rows], (-force[:, 0], -force[:, 1]))
             columns[f"{joint.name}.Fx"], columns[f"{joint.name}.Fy"] = fx, fy
-            columns[f"{joint.name}.M"] = np.full(len(rows), np.nan)
-            missing[f"{joint.name}.M"] = NO_PRISMATIC_COUPLE
     for drive in mechanism.drives:
         effort = drive.effort_column(mechanism.joint(drive.joint).kind)
         columns[effort] = -model.mbs.GetSensorStoredData(model.drive_sensors[drive.name])[rows, 1]
+    laws = [f"{law.name}.T" for law in mechanism.torque_drives]
+    for law, column in zip(mechanism.torque_drives, laws):     # the applied torque, known at every step
+        sensor, sign = model.torque_sensors[law.name]
+        columns[column] = sign * model.mbs.GetSensorStoredData(sensor)[rows, 3]
+    missing.update(_slide_couples(mechanism, columns, state, rows))
     if not solved_start and rows[0] == 0:
-        for column in (c for c in mechanism.reaction_columns() if c in columns):   # not the torque laws
+        for column in (c for c in mechanism.reaction_columns() if c not in laws):
             columns[column][0] = np.nan
             missing.setdefault(column, UNSOLVED_START)
-    for law in mechanism.torque_drives:     # the applied torque, known at every step
-        sensor, sign = model.torque_sensors[law.name]
-        columns[f"{law.name}.T"] = sign * model.mbs.GetSensorStoredData(sensor)[rows, 3]
 
     gap = joint_gaps(mechanism, motion)
     tracking = drive_errors(mechanism, motion) if mechanism.drives else np.zeros(len(t_all))
     return pd.DataFrame(columns), missing, gap, tracking
+
+
+def _slide_couples(mechanism: Mechanism, columns: dict[str, np.ndarray], state: dict[str, dict[str, np.ndarray]],
+                   rows: np.ndarray) -> dict[str, str]:
+    """Put each slide's couple "J.M" into `columns`, derived from its
+    body's balance (`exudyn_slide`), or NaN; returns the reasons for the
+    missing ones."""
+    slides = [f"{j.name}.M" for j in mechanism.joints if j.kind == "prismatic"]
+    if not slides:
+        return {}
+    coordinates, rates = (np.hstack([state[b.name][kind][rows] for b in mechanism.bodies]) for kind in ("q", "v"))
+    couples = slide_couples(mechanism, columns, coordinates, rates)
+    if couples is None:
+        columns.update({column: np.full(len(rows), np.nan) for column in slides})
+        return dict.fromkeys(slides, UNDERIVABLE)
+    columns.update(couples)
+    return {}
 
 
 def _frame_motion(mechanism: Mechanism, state: dict[str, dict[str, np.ndarray]],

@@ -136,8 +136,11 @@ def index3_transient_steps(spectral_radius: float) -> int:
 
 
 def force_scale(mechanism: Mechanism, times: np.ndarray, dense: int = 2001) -> float:
-    """Peak over the run of Σ m·|a_G − g| (N): the size of the forces the
-    Newton residual is made of; computed once per mechanism."""
+    """Peak over the run of Σ m·|a_G − g|·max(1, r/1 m) (N), r the largest
+    distance from the body's centre of mass to its joints: the size of the
+    forces the Newton residual is made of and of their moments about the
+    centres of mass (N·m: arms beyond a metre make those the larger rows);
+    computed once per mechanism."""
     t0, t1 = float(times[0]), float(times[-1])
     return mechanism.derive(("exudyn.force_scale", t0, t1, dense),
                             lambda: _force_scale(mechanism, np.linspace(t0, t1, dense)))
@@ -148,7 +151,9 @@ def _force_scale(mechanism: Mechanism, t: np.ndarray) -> float:
     total = np.zeros_like(t)
     for body in mechanism.bodies:
         g = point_motion(motion, body.name, body.com)
-        total += body.mass * np.hypot(g["ax"] - mechanism.gravity[0], g["ay"] - mechanism.gravity[1])
+        arm = max((float(np.hypot(p[0] - body.com[0], p[1] - body.com[1])) for j in mechanism.joints
+                   for b, p in ((j.body_i, j.point_i), (j.body_j, j.point_j)) if b == body.name), default=0.0)
+        total += body.mass * np.hypot(g["ax"] - mechanism.gravity[0], g["ay"] - mechanism.gravity[1]) * max(1.0, arm)
     return float(total.max())
 
 

@@ -44,6 +44,19 @@ MAX_MASS_RATIO = 1e9
 #: its mjMINVAL = 1e-15 (izz is split over two axes: izz ≥ 2e-15).
 MIN_MASS = 1e-9
 MIN_INERTIA = 1e-14
+#: Farthest centre of mass from its link's nearest joint, in units of the
+#: mechanism's size (its largest joint coordinate or link length). Beyond it
+#: the centre of mass sets the scale of the solvers' coordinates and the
+#: joints drown in their rounding. fourbar-seed (size 0.6 m) with the
+#: rocker's centre of mass 1e5 m out (1.7e5 sizes) fails every engine
+#: (PyBullet 70×, MuJoCo 2e3× its bounds, Exudyn's solver stops) and the
+#: general reference can no longer assemble its planar twin; 5e3 m out it
+#: follows the twin as with the centre of mass on the rocker (angles within
+#: 3e-12 rad; tests/test_limits.py); from 1e8 m its rank test calls the
+#: four-bar redundant. Engines lose accuracy earlier (MuJoCo's default step
+#: from ~100 m out, Exudyn's closure from ~1e3 m; PyBullet holds to 7e4 m):
+#: out of tolerance, not refused.
+MAX_COM_DISTANCE = 1e4
 
 
 def check_scene(scenario: Scenario) -> None:
@@ -81,6 +94,12 @@ def check_scene(scenario: Scenario) -> None:
         if 0 < izz < MIN_INERTIA:
             raise fail(key, f"izz = {izz:.3g} kg·m² is below {MIN_INERTIA:g} kg·m² "
                             "(MuJoCo refuses inertias ≤ 1e-15 kg·m² per axis)")
+    size = _size(scenario)
+    for key, distance in _com_distances(scenario):
+        if not distance <= MAX_COM_DISTANCE * size:
+            raise fail(key, f"the centre of mass lies {distance:.3g} m from its link's nearest joint, more than "
+                            f"{MAX_COM_DISTANCE:.0e} times the mechanism's size ({size:.3g} m): the joints would "
+                            "drown in the rounding of its coordinates")
 
 
 def _drive_laws(scenario: Scenario) -> list[tuple[str, DriveLaw]]:
@@ -95,6 +114,35 @@ def _masses(scenario: Scenario) -> list[tuple[str, float, float]]:
     if scenario.planar is None:
         return [(f"mass.{link}", m.mass, m.izz) for link, m in scenario.mass.items()]
     return [(f"body[{k}]", b.mass, b.izz) for k, b in enumerate(scenario.planar.bodies)]
+
+
+def _size(scenario: Scenario) -> float:
+    """The mechanism's size (m): its largest link length or offset, or a
+    planar file's largest joint coordinate (body frames; world for the
+    ground)."""
+    if scenario.planar is None:
+        values = [abs(v) for v in scenario.geometry.values() if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    else:
+        values = [abs(v) for j in scenario.planar.joints for p in (j.point_i, j.point_j) for v in p]
+    return max(values, default=0.0) or 1.0
+
+
+def _com_distances(scenario: Scenario) -> list[tuple[str, float]]:
+    """(key, distance in m) of every moving link's centre of mass from the
+    nearest of its joints: along a bar link from either end (the four
+    kinds' `com` is measured from its first joint), or to the nearest of a
+    planar body's joint points."""
+    if scenario.planar is None:
+        def bar(link: str, com: float) -> float:
+            length = scenario.geometry.get(link)
+            return min(abs(com), abs(com - length)) if isinstance(length, (int, float)) else abs(com)
+        return [(f"mass.{link}", bar(link, m.com)) for link, m in scenario.mass.items()]
+    distances = []
+    for k, body in enumerate(scenario.planar.bodies):
+        points = [p for j in scenario.planar.joints for b, p in ((j.body_i, j.point_i), (j.body_j, j.point_j))
+                  if b == body.name]
+        distances.append((f"body[{k}].com", min((math.dist(body.com, p) for p in points), default=0.0)))
+    return distances
 
 
 def crank_angle_peak(phi0: float, omega0: float, alpha: float, end: float) -> tuple[float, float]:

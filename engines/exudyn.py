@@ -15,7 +15,8 @@ Conversion of Exudyn's native outputs to the mechval convention:
   `ObjectJointPrismatic2D` has no `Force` output; its `ForceLocal` (x, y)
   is the force on body_i from body_j in body_i's frame (measured with a
   turned guide), so Fij = −R(θi)·ForceLocal. Its third component stays 0
-  even under a couple: M is reported missing with that reason.
+  even under a couple: M is derived from the moment balance of one of the
+  joint's bodies with Exudyn's own motion and reactions (`exudyn_slide`).
 - Drives: each a coordinate constraint q1 − q0 = offset(t), on the
   rotation coordinates (revolute) or on a ground coordinate and the slide
   (prismatic); its multiplier λ (`Force` output) gives the effort on
@@ -56,6 +57,7 @@ from .base import EngineAdapter, RawRun, RunInfo, default_step, planned_motion
 from .exudyn_audit import audit_model
 from .exudyn_model import solve
 from .exudyn_run import force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
+from .exudyn_slide import derived_note
 
 #: Newton's absolute tolerance per newton of force scale. Newton stops at the
 #: relative goal (1e-12 of the step's first residual) or at this floor,
@@ -202,9 +204,14 @@ class ExudynAdapter(EngineAdapter):
                                                     bool(settings["compute_initial_accelerations"]))
         info = {
             "steps": len(t_all) - 1,
-            "pre_roll_start": t0, "newton_iterations": int(solver.it.newtonStepsCount),
+            "pre_roll_start": t0, "pre_roll_steps_used": int(round((times[0] - t0) / float(settings["timestep"]))),
+            "newton_iterations": int(solver.it.newtonStepsCount),
             "jacobian_updates": int(solver.it.newtonJacobiCount),
             "closure_gap_max": float(gap.max()), "drive_error_max": float(drive_error.max()),
             "build_time_s": build_time, "wall_time_s": wall_time,
         }
+        if derived := derived_note(mechanism):
+            info["derived_reactions"] = derived
+        if settings["solver"] == "index3":       # lowered after a shortened pre-roll (`prepare`)
+            info["spectral_radius_used"] = simulation.timeIntegration.generalizedAlpha.spectralRadius
         return RawRun(frame, missing, RunInfo.of(info))

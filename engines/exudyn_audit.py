@@ -37,7 +37,7 @@ from mechval.kinematics import rotate
 from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 from .exudyn_run import prepare
-from .exudyn_model import ExudynModel, TorqueLawLoad
+from .exudyn_model import ExudynModel, TorqueLawLoad, torque_law_load_names
 
 ENGINE = "exudyn"
 #: Item types the adapter's model is made of; anything else is listed.
@@ -345,13 +345,14 @@ class Reader:
         return readings
 
     def torque_law(self, law: TorqueLaw) -> list[Reading]:
-        """The `LoadTorqueVector`s named after the law: the joint whose
-        bodies carry them (body_j +T, body_i −T, none on the ground), and
-        the law's parameters as held by their user function (Exudyn reports
-        the function, not what it computes), checked by evaluating both
-        loads' functions at the run's output instants."""
-        item = torque_law_item(law)
-        found = [i for i, load in enumerate(self.loads) if load["name"] == item]
+        """The `LoadTorqueVector`s named after the law (one name per side,
+        `torque_law_load_names`): the joint whose bodies carry them (body_j
+        +T, body_i −T, none on the ground), and the law's parameters as
+        held by their user function (Exudyn reports the function, not what
+        it computes), checked by evaluating both loads' functions at the
+        run's output instants."""
+        item, names = torque_law_item(law), set(torque_law_load_names(law).values())
+        found = [i for i, load in enumerate(self.loads) if load["name"] in names]
         self.used_loads.update(found)
         carried, functions = {}, []
         for number in found:

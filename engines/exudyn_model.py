@@ -104,9 +104,10 @@ def start_state(mechanism: Mechanism, t0: float) -> pd.DataFrame:
     return start
 
 
-def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
+def build_model(mechanism: Mechanism, t0: float, start: pd.DataFrame | None = None) -> ExudynModel:
     """The Exudyn model of `mechanism`, in the reference state at t0
-    (`start_state`); the solver's time 0 is t0.
+    (`start`, raw motion columns of that one instant; by default
+    `start_state`); the solver's time 0 is t0.
 
     Reference coordinates are the reference pose at t0 and initial
     velocities the reference velocities, so the start is consistent; the
@@ -116,7 +117,7 @@ def build_model(mechanism: Mechanism, t0: float) -> ExudynModel:
     """
     system = exu.SystemContainer()
     mbs = system.AddSystem()
-    start = start_state(mechanism, t0)
+    start = start_state(mechanism, t0) if start is None else start
     model = ExudynModel(system, mbs, start)
 
     ground = mbs.AddObject(eii.ObjectGround())
@@ -314,18 +315,27 @@ class TorqueLawLoad:
         return [0.0, 0.0, self._c + self._a * math.sin(self._w * (t + self.t0) + self._p)]
 
 
+def torque_law_load_names(law: TorqueLaw) -> dict[float, str]:
+    """The names of a torque law's two loads, by sign (+1 on body_j, −1 on
+    body_i): Exudyn refuses a second load of the same name, and a law
+    between two moving bodies has both."""
+    item = torque_law_item(law)
+    return {1.0: f"{item} on body_j", -1.0: f"{item} on body_i"}
+
+
 def _add_torque_law(mbs: exu.MainSystem, mechanism: Mechanism, law: TorqueLaw, objects: dict[str, int],
                     t0: float) -> tuple[int, float]:
     """T(t) on body_j and −T(t) on body_i (`LoadTorqueVector`s named after
-    the law, with `TorqueLawLoad`; none on the ground). Returns the sensor
-    of the first load and its sign."""
+    the law and the side, `torque_law_load_names`, with `TorqueLawLoad`;
+    none on the ground). Returns the sensor of the first load and its sign."""
     joint = mechanism.joint(law.joint)
+    names = torque_law_load_names(law)
     sensors = []
     for body, sign in ((joint.body_j, 1.0), (joint.body_i, -1.0)):
         if body == GROUND:
             continue
         marker = mbs.AddMarker(eii.MarkerBodyRigid(bodyNumber=objects[body], localPosition=[0.0, 0.0, 0.0]))
-        load = mbs.AddLoad(eii.LoadTorqueVector(name=torque_law_item(law), markerNumber=marker,
+        load = mbs.AddLoad(eii.LoadTorqueVector(name=names[sign], markerNumber=marker,
                                                 loadVector=[0.0, 0.0, 0.0],
                                                 loadVectorUserFunction=TorqueLawLoad(law, sign, t0)))
         sensors.append((mbs.AddSensor(eii.SensorLoad(loadNumber=load, storeInternal=True, writeToFile=False)), sign))
@@ -359,11 +369,35 @@ def simulation_settings(settings: Mapping[str, Any], duration: float, dt: float)
 
 def solve(model: ExudynModel, simulation: exu.SimulationSettings,
           solver: str) -> exu.MainSolverImplicitSecondOrder:
-    """Run the solver with Exudyn's console output off; raise on failure."""
+    """Run the solver with Exudyn's console output off; raise on failure.
+
+    A stop signal (KeyboardInterrupt, the harness's `Interrupted`) raised
+    inside a user function reaches the caller as itself, not as the
+    `ModelError` Exudyn wraps it in ("Error in Python USER FUNCTION"):
+    Exudyn turns every exception of a user function into its own, keeping
+    the original as the cause."""
     printing = exu.config.printToConsole
     exu.config.printToConsole = False
     try:
         model.mbs.SolveDynamic(simulation, solverType=SOLVERS[solver], storeSolver=True)
+    except Exception as failure:
+        stop = _stop_inside(failure)
+        if stop is not None:
+            raise stop from None
+        raise
     finally:
         exu.config.printToConsole = printing
     return model.mbs.sys["dynamicSolver"]
+
+
+def _stop_inside(failure: BaseException) -> BaseException | None:
+    """The first exception in the failure's chain of causes that is not an
+    `Exception` (a KeyboardInterrupt or SystemExit), if any."""
+    seen = set()
+    cause = failure.__cause__ or failure.__context__
+    while cause is not None and id(cause) not in seen:
+        if not isinstance(cause, Exception):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None

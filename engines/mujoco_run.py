@@ -15,7 +15,6 @@ from typing import Any, Mapping
 import mujoco
 import numpy as np
 import pandas as pd
-from mujoco import rollout
 
 from mechval import engine_inputs
 from mechval.engines.base import Unrepresentable, reference_motion
@@ -25,6 +24,7 @@ from mechval.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
 from .mujoco_model import (Names, Topology, angle_coefficients, clock_name, coordinates, drive_name, force_name,
                            force_sites, inertia_shift, loop_name, mjcf, raw_columns, topology, torque_coefficients,
                            torque_law_controls, torque_law_name)
+from .mujoco_rollout import rollout_in_pieces
 from .mujoco_snapshot import Snapshot
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -208,10 +208,9 @@ class Model:
         state0, nstep = self.initial_state(), self.nstep
         # Controls only for torque laws (8 B per actuator and step; the
         # other actuators have no control gain).
-        control = self.controls(nstep)[None] if self.law_actuators else None
+        control = self.controls(nstep) if self.law_actuators else None
         start = time.perf_counter()
-        states = (rollout.rollout(m, d, state0[None, :], control, nstep=nstep)[0][0] if nstep
-                  else np.empty((0, len(state0))))
+        states = rollout_in_pieces(m, d, state0, control, nstep)
         wall = time.perf_counter() - start
         # Sample k is the state after step preroll + k·substeps; states[i]
         # is the state after step i + 1 (state0 is after none).

@@ -77,6 +77,10 @@ def test_long_integers_and_deep_nesting_in_a_file(tmp_path):
     (fourbar(mass={"coupler": {"mass": 2.0, "izz": 1e-20}}), "mass.coupler", "below 1e-14 kg·m²"),
     (fourbar(mass={"crank": 1e-9, "coupler": 1e-9, "rocker": {"mass": 1e-9, "com": 0.25, "izz": 5e-15}}),
      "mass.rocker", "izz = 5e-15"),
+    # A distant centre of mass was refused as "redundant constraints" (1e9 m,
+    # by Exudyn) or crashed the reference's assembly (1e12 m, exit 1).
+    (fourbar(mass={"rocker": {"mass": 25.0, "com": 1e9}}), "mass.rocker", "lies 1e+09 m from its link's nearest"),
+    (fourbar(mass={"rocker": {"mass": 25.0, "com": -1e12}}), "mass.rocker", "1e+04 times the mechanism's size"),
     (fourbar(effects={"gravity": [0.0, 10**400]}), "effects.gravity[1]", "magnitude ~1e400 exceeds"),
     (fourbar(effects={"gravity": [0.0, float("nan")]}), "effects.gravity[1]", "must be finite"),
 ])
@@ -90,6 +94,30 @@ def test_bounds_leave_the_builtins_and_their_neighbourhood_alone():
     parse(fourbar(mass={"crank": 1e-9, "coupler": 1e-9, "rocker": 1e-9}), "light.toml")
     parse(fourbar(mass={"crank": 1e-6, "coupler": 1e3}), "ratio.toml")
     parse(fourbar(drive={"phi0": -1e6 + 20.0}), "far.toml")
+    parse(fourbar(mass={"rocker": {"mass": 25.0, "com": 5e3}}), "distant-com.toml")
+
+
+def test_the_distant_centre_of_mass_bound_is_where_the_reference_breaks(monkeypatch):
+    """MAX_COM_DISTANCE's measurement (the engines' figures are in its
+    comment): the general reference follows fourbar-seed's planar twin
+    with the rocker's centre of mass 5e3 m out (8.3e3 sizes) as with it on
+    the rocker (kinematics do not depend on it: angles within 1e-9 rad,
+    measured 3e-12); 1e5 m out (1.7e5 sizes) it can no longer assemble the
+    four-bar, its closure tolerance scaled by a size the centre of mass
+    sets."""
+    import tomllib
+    from mechval import limits
+    from mechval.reference import simulate_reference
+    doc = tomllib.loads((builtin_path("x").parent / "planar-twins" / "fourbar-seed.toml").read_text(encoding="utf-8"))
+    doc["time"].update(end=1.0, samples=101)
+    near = simulate_reference(parse(doc, "near.toml")).frame["rocker.theta"]
+    doc["body"][2]["com"] = [5e3, 0.0]
+    far = simulate_reference(parse(doc, "far.toml")).frame["rocker.theta"]
+    assert np.abs(far - near).max() < 1e-9
+    monkeypatch.setattr(limits, "MAX_COM_DISTANCE", 1e9)
+    doc["body"][2]["com"] = [1e5, 0.0]
+    with pytest.raises(ScenarioError, match="cannot be assembled"):
+        parse(doc, "beyond.toml")
 
 
 @pytest.mark.engine
@@ -294,6 +322,7 @@ def test_summary_table_escapes_names_and_reasons():
     (lambda doc: doc["time"].update(samples=10**7), "time.samples"),
     (lambda doc: doc["drive"][0].update(phi0=1e15), "drive[0].phi0"),
     (lambda doc: doc["body"][0].update(mass=1e-300), "body[0]"),
+    (lambda doc: doc["body"][2].update(com=[1e9, 0.0]), "body[2].com"),
 ])
 def test_planar_files_get_the_same_scene_bounds(edit, key):
     """A planar file is bounded like the four kinds, before the mechanism is

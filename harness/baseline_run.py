@@ -13,7 +13,7 @@ from typing import Any, Mapping
 
 import pandas as pd
 
-from mechval.engine_inputs import Feed
+from mechval.engine_inputs import Feed, InputsNotRecorded
 from mechval.engines.registry import adapter, adapter_class
 from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome, Task
@@ -226,8 +226,14 @@ def check_command(scenarios: list, engines: list[str], root: Path, rtol: float |
     verdicts: dict[str, int] = {}
 
     def judge(outcome: Outcome) -> None:
-        if outcome.signals is None:
-            verdict, text = "run failed", f"{outcome.task.label}: run failed: {outcome.error}"
+        task = outcome.task
+        if outcome.signals is None and outcome.error.startswith(InputsNotRecorded.__name__):
+            verdict, text = "inputs changed", (
+                f"{task.label}: {outcome.error.partition(': ')[2]}\n  verdict: INPUTS CHANGED (the adapter starts "
+                f"its runs differently since the baseline was saved); record it again with\n"
+                f"    {save_command_line(task, root, force=True)}")
+        elif outcome.signals is None:
+            verdict, text = "run failed", f"{task.label}: run failed: {outcome.error}"
         else:
             verdict, text = check_run(root, outcome.task, outcome.signals,
                                       references[outcome.task.scenario.name], meta, rtol, signal_rtol)

@@ -650,3 +650,21 @@ def test_check_is_insensitive_to_the_references_last_bits(scenario, engine, sett
                      dataclasses.replace(task.feed, reads=task.feed.reads.nudged(1)))
     assert bl.regressed(bl.compare_to_baseline(signals, moved)), \
         "an ulp of this run's inputs moves its signals beyond 1e-9 of peak"
+
+
+@pytest.mark.engine
+def test_a_run_that_reads_other_inputs_than_recorded_is_its_own_verdict(any_engine, tmp_path, capsys):
+    """An adapter that now starts its runs differently reads the reference
+    where the baseline recorded nothing: the check says so and gives the
+    command that records it again (not a regression, not a crash)."""
+    assert baseline_cli("save", "--engine", any_engine, "--dir", str(tmp_path)) == 0
+    for path in tmp_path.rglob("*.json"):
+        meta = json.loads(path.read_text())
+        meta["inputs"] = {f"other|{key}": value for key, value in meta["inputs"].items()}
+        path.write_text(json.dumps(meta))
+    capsys.readouterr()
+    assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 1
+    out = capsys.readouterr().out
+    assert "where the baseline recorded no value" in out and "verdict: INPUTS CHANGED" in out
+    assert f"mechval baseline save {CLI_SCENARIO} --engine {any_engine} --dir {tmp_path} --force" in out
+    assert "Traceback" not in out

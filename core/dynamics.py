@@ -9,8 +9,8 @@ prescribed drives' (`mechval.planar_constraints`), M and Q from
 
 Minimal coordinates by coordinate partitioning (Wehage & Haug 1982): the
 stated joints' coordinates z (`mechval.initial_state`) are integrated,
-y = (z, ż), by scipy's `solve_ivp` (DOP853 by default, Hairer, Nørsett &
-Wanner, *Solving ODEs I*, §II.10; or Radau). At every evaluation:
+y = (z, ż), by scipy's DOP853 (Hairer, Nørsett & Wanner, *Solving ODEs
+I*, §II.10; or Radau) at RTOL. At every evaluation:
 - positions q: Newton on Φ(q, t) = 0 with the coordinate rows held at z,
   from the previous evaluation's q moved by ∂q/∂z·Δz, to its fixed point;
 - velocities: Φq·q̇ = −Φt with the coordinate rows' rates ż;
@@ -23,7 +23,8 @@ stabilisation. The integrator's evaluations, one instant each, solve with
 Φq by LU (QR with redundant rows) of the scaled Jacobian; the outputs, in
 batches, by the tree elimination of `mechval.planar_tree`.
 
-Output at the requested instants: z, ż from the integrator's dense output;
+Output at the requested instants: z, ż from the dense output of the steps
+that hold them;
 q predicted by quintic Hermite interpolation between the accepted steps
 (`mechval.planar_positions.Nodes`) and corrected by Newton in batches, then
 q̇, q̈ as above and the multipliers from M·q̈ + Φqᵀ·λ = Q, turned into the
@@ -44,7 +45,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
-from scipy.integrate import solve_ivp
+from scipy.integrate import DOP853, Radau
 from scipy.linalg import qr, solve_triangular
 from scipy.linalg.lapack import dgetrf, dgetrs
 
@@ -55,17 +56,27 @@ from .planar_linear import settled
 from .planar_positions import Nodes, Structure
 from .planar_solver import CHUNK, UNIQUE_TOL, PlanarSolver, default_pose
 
-#: The integrator's relative tolerance by default (issue 15: 1e-10).
-RTOL = 1e-10
-METHODS = ("DOP853", "Radau")
+#: The integrator's relative tolerance by default. It bounds each step's
+#: error; over a run the steps' errors add up, about in proportion to the
+#: turns the run makes, and the accelerations and forces of a fast run
+#: inherit the angles' absolute error times Ω². 1e-10 (issue 15) left a
+#: four-bar spun up to 100 rad/s over 13 turns 1e-7 of its acceleration peak
+#: off; 1e-13 keeps the reference within 1e-9 of each class's peak of a
+#: tighter integration up to about 15 turns (tests/test_dynamics_accuracy.py
+#: holds it, tests/bench/dynamics_accuracy.py prints the figures). Below
+#: 100 ulp (2.2e-14) scipy takes 100 ulp.
+RTOL = 1e-13
+SOLVERS = {"DOP853": DOP853, "Radau": Radau}
+METHODS = tuple(SOLVERS)
 NEWTON_ITERATIONS = 30
 #: Most right-hand-side evaluations of one integration (README "Limits"):
-#: each solves the positions by Newton, 1.5-3 ms measured on a shared
-#: 2-core machine at load 7 (tests/bench/dynamics_bench.py), so 3·10⁴ take
-#: 45-90 s, within the fuzz tests' 120 s bound on one case. The built-ins
-#: take 150-2,500; the seed four-bar falling for 10 s 9,560. A longer run is
-#: refused rather than left running for many minutes.
-MAX_EVALUATIONS = 30_000
+#: each solves the positions by Newton, up to 3 ms on a loaded shared
+#: machine (tests/bench/dynamics_bench.py prints the time per evaluation),
+#: so a refused run ends within the fuzz tests' 120 s bound on one case.
+#: At RTOL it leaves room for 15 turns of a fast four-bar with a sixth to
+#: spare (tests/test_dynamics_accuracy.py). A longer run is refused rather
+#: than left running for many minutes.
+MAX_EVALUATIONS = 35_000
 
 
 #: A rate beyond this (rad/s, m/s, or their derivatives) ends the run: its
@@ -253,7 +264,7 @@ class ForwardDynamics:
         return q[0], v[0], a[0], zddot[0]
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        """dy/dt for y = (z, ż): the ODE that solve_ivp integrates."""
+        """dy/dt for y = (z, ż): the ODE integrated."""
         if self.evaluations >= MAX_EVALUATIONS:
             raise TooLong(t)
         try:
@@ -309,9 +320,33 @@ class ForwardDynamics:
                                          f"{SINGULAR_CONDITION:.0e}: a toggle of those joints): state the initial "
                                          "values at other joints")
 
+    def _integrate(self, t: np.ndarray, y0: np.ndarray, rtol: float, atol: np.ndarray, method: str):
+        """Step the integrator from t0 to t[-1]: the accepted steps' instants
+        and states, and the state at the instants t from the dense output of
+        the steps that hold them, only those (DOP853's costs three more
+        evaluations a step, and most steps of a fast run hold no instant)."""
+        start = self.start
+        solver = SOLVERS[method](self.rhs, start.t0, y0, float(t[-1]), rtol=rtol, atol=atol)
+        instants, states = [start.t0], [y0]
+        y = np.empty((len(y0), len(t)))
+        done = int(np.searchsorted(t, start.t0, side="right"))
+        y[:, :done] = y0[:, None]
+        while solver.status == "running":
+            message = solver.step()
+            if solver.status == "failed":
+                raise MechanismError("time", f"the integrator stopped: {message}")
+            instants.append(solver.t)
+            states.append(solver.y)
+            end = int(np.searchsorted(t, solver.t, side="right"))
+            if end > done:
+                y[:, done:end] = solver.dense_output()(t[done:end])
+                done = end
+        return np.array(instants), np.array(states).T, y
+
     def solve(self, t: np.ndarray, rtol: float = RTOL, method: str = "DOP853") -> DynamicSolution:
         """Raw motion and reaction columns at instants t (nondecreasing,
-        from the initial instant on)."""
+        from the initial instant on). Radau, of order 5, needs many times
+        DOP853's evaluations at RTOL: give it a looser rtol."""
         t = np.asarray(t, dtype=float)
         start = self.start
         if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) < 0) or t[0] < start.t0:
@@ -325,9 +360,8 @@ class ForwardDynamics:
             try:
                 atol = self.tolerances(rtol, t_end - start.t0)
                 self._restart()
-                sol = solve_ivp(self.rhs, (start.t0, t_end), y0, method=method, rtol=rtol, atol=atol,
-                                dense_output=True)
-                failure = "" if sol.status == 0 else f"the integrator stopped: {sol.message}"
+                instants, states, y = self._integrate(t, y0, rtol, atol, method)
+                failure = ""
             except Overflows as error:
                 raise MechanismError("time", f"the motion leaves float64's range at t = {error.t:.6g} s "
                                              f"(a rate beyond {RATE_LIMIT:.0e}): the scene's loads (gravity, torques, "
@@ -344,18 +378,18 @@ class ForwardDynamics:
                 failure = error.reason
             if failure:
                 raise self._stopped(failure)
-            steps, evaluations, interpolate = len(sol.t) - 1, self.evaluations, sol.sol
-            nodes = self._nodes(sol.t, sol.y)
+            steps, evaluations = len(instants) - 1, self.evaluations
+            nodes = self._nodes(instants, states)
         else:
             atol, steps, evaluations = rtol * np.ones(2 * self.k), 0, 0
-            interpolate = lambda t: np.repeat(y0[:, None], len(np.atleast_1d(t)), axis=1)
+            y = np.repeat(y0[:, None], len(t), axis=1)
             nodes = self._nodes(np.array([start.t0]), y0[:, None])
         integration = time.perf_counter() - clock
-        frame, missing, measured = self._output(t, interpolate, nodes)
+        frame, missing, measured = self._output(t, y, nodes)
         facts = {"method": "forward dynamics: coordinate partitioning on the joints "
                            f"{', '.join(self.joints) or '(none)'}, absolute coordinates, constraint multipliers "
                            "(Wehage & Haug 1982, Haug 1989)",
-                 "integrator": f"scipy.integrate.solve_ivp {method}", "rtol": rtol,
+                 "integrator": f"scipy.integrate.{method}", "rtol": rtol,
                  "atol": [float(x) for x in atol], "steps": steps, "evaluations": evaluations,
                  "integration_time_s": integration, "mobility": start.structure.mobility,
                  "redundant_constraints": start.structure.redundant, **measured}
@@ -374,8 +408,9 @@ class ForwardDynamics:
                     drift=np.abs(residual * self.solver.scaling.row).max(axis=-1),
                     undetermined=factor.undetermined(self.solver.scaling.row, UNIQUE_TOL))
 
-    def _output(self, t: np.ndarray, interpolate, nodes: Nodes):
-        """The raw columns at t, their missing reasons and measured facts."""
+    def _output(self, t: np.ndarray, y: np.ndarray, nodes: Nodes):
+        """The raw columns at t (y: the integrated state there), their
+        missing reasons and measured facts."""
         solver, mech = self.solver, self.mech
         augmented = ["t"] + solver.mech.motion_columns() + solver.mech.reaction_columns()
         table = np.empty((len(augmented), len(t)))
@@ -384,7 +419,7 @@ class ForwardDynamics:
         undetermined = np.zeros(solver.c.m, dtype=bool)
         for start in range(0, len(t), CHUNK):
             part = slice(start, start + CHUNK)
-            out = self._batch(t[part], interpolate(t[part]), nodes)
+            out = self._batch(t[part], y[:, part], nodes)
             condition[part], drift[part] = out["condition"], out["drift"]
             undetermined |= out["undetermined"]
             table[1:, part] = solver._columns(out)

@@ -291,7 +291,7 @@ class AdapterContract:
         prescribed motion), the engine integrates the mechanism's own
         dynamics; body angles, positions, reactions and efforts stay within
         the default tolerances of the forward-dynamics reference
-        (`mechval.dynamics`, DOP853 at 1e-10) at the engine's default
+        (`mechval.dynamics`, DOP853 at its RTOL) at the engine's default
         setting."""
         mech, times, frame = self.run_dynamic(adapter, name)
         reference = raw_dynamics(mech, times).frame

@@ -63,7 +63,7 @@ def test_no_energy_figure_without_the_energy_series():
 def test_summary_and_page_state_the_reference_integrator_and_tolerance():
     reference = free_fourbar_reference()
     method = build.reference_method(reference)
-    assert "scipy.integrate.solve_ivp DOP853" in method and f"rtol {RTOL:g}" in method
+    assert "scipy.integrate.DOP853" in method and f"rtol {RTOL:g}" in method
     scene = parse(slider_crank(), "scene.toml")
     records = pd.DataFrame(columns=COLUMNS)
     text = build.summary_markdown(records, [scene], {"date": "today", "commit": "abc"}, {scene.name: reference})

@@ -1,5 +1,5 @@
 """Figures: MuJoCo on torque-driven and free mechanisms (issue 15), against
-the forward-dynamics reference (mechval.dynamics, DOP853 at 1e-10) from
+the forward-dynamics reference (mechval.dynamics, DOP853 at its RTOL) from
 the same initial state. Asserts nothing; docs/engines.md quotes them.
 
 - per case of tests/dynamic_mechanisms.py at MuJoCo's default setting: the

@@ -1,6 +1,6 @@
 """Figures: PyBullet on torque-driven and free mechanisms (issue 15), at
 its default setting, against the forward-dynamics reference
-(`mechval.dynamics`, DOP853 at 1e-10).
+(`mechval.dynamics`, DOP853 at its RTOL).
 
     .venv/bin/python tests/bench/pybullet_dynamics_figures.py [--no-energy] [--no-andrews] [CASE ...]
 

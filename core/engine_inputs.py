@@ -16,10 +16,10 @@ Every read of an adapter's `run` goes through the run's `EngineInputs`
 (the harness wraps the mechanism's `motion` in one, `fed_mechanism`):
 recording, it computes the value and keeps it; replaying, it returns the
 kept value and refuses a read it does not hold (`InputsNotRecorded`).
-Reads are keyed by what was asked — a kind, a tolerance and the instants,
-bit for bit (the instants derive from the samples and the settings, which
-a replay feeds too) — and kept as the rows the adapter asked for, so a
-recording is a few rows, not a motion.
+Reads are keyed by what was asked — a kind and the instants, bit for bit
+(the instants derive from the samples and the settings, which a replay
+feeds too) — and kept as the rows the adapter asked for, so a recording
+is a few rows, not a motion.
 """
 
 from __future__ import annotations
@@ -46,12 +46,15 @@ class InputsNotRecorded(ValueError):
     not record (the adapter reads other instants than it did then)."""
 
 
-def read_key(kind: str, t: np.ndarray, rtol: float | None) -> str:
-    """The key of one read: kind, tolerance and a digest of the instants'
-    bytes (two reads of the same instants give the same key)."""
+def read_key(kind: str, t: np.ndarray) -> str:
+    """The key of one read: what the adapter asked for, a kind and a digest
+    of the instants' bytes (two reads of the same instants give the same
+    key). The tolerance the reference computes it to is the reference's
+    business, recorded beside the value but not part of what was asked:
+    a recording stays valid when the reference's own accuracy changes."""
     t = np.ascontiguousarray(t, dtype=float)
     digest = hashlib.sha256(t.tobytes()).hexdigest()[:16]
-    return f"{kind}|{'' if rtol is None else repr(float(rtol))}|{len(t)}|{digest}"
+    return f"{kind}|{len(t)}|{digest}"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,19 +125,25 @@ class EngineInputs:
         """The value of one read: `compute()` while recording (and kept),
         the recorded value while replaying."""
         t = np.asarray(t, dtype=float)
-        key = read_key(kind, t, rtol)
+        key = read_key(kind, t)
+        if key in self.recorded:                # asked again in the same run
+            return self.replay.frame(key) if self.replay is not None else self.frame(key)
         if self.replay is not None:
             if key not in self.replay.reads:
                 raise InputsNotRecorded(
                     f"the run read the reference ({kind}, {len(t)} instant(s) from t = {t[0] if t.size else 0:.6g} s) "
                     "where the baseline recorded no value: the adapter reads other inputs than when it was "
                     "recorded")
+            self.recorded[key] = self.replay.reads[key]
             return self.replay.frame(key)
         frame = compute()
         self.recorded[key] = {"t0": float(t[0]) if t.size else None, "t1": float(t[-1]) if t.size else None,
-                              "n": int(t.size),
+                              "n": int(t.size), "rtol": rtol,
                               "columns": {str(c): [float(v) for v in frame[c].to_numpy(dtype=float)] for c in frame}}
         return frame.copy()
+
+    def frame(self, key: str) -> pd.DataFrame:
+        return RecordedInputs({key: self.recorded[key]}).frame(key)
 
     def record(self) -> RecordedInputs:
         """What was read (while recording) or fed (while replaying)."""

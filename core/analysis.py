@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linkages import build_mechanism, linkage
+from .linkages import ClosedForm, build_mechanism
 from .planar_analysis import analyse_planar, format_planar_analysis
 from .reference import raw_reference
 from .scenario import Scenario, ScenarioError
@@ -89,38 +89,38 @@ SINGULAR_COND = 1e7
 
 def jacobian_condition(kind: str, geometry, k: dict[str, np.ndarray]) -> np.ndarray:
     """2-norm condition number of the loop's velocity Jacobian at each
-    instant, columns scaled to the same units (distance to singularity)."""
+    instant, columns scaled to the same units (distance to singularity).
+    `geometry`: the kind's Geometry dataclass."""
     th2, th3 = k["theta2"], k["theta3"]
     if kind == "fourbar":
         # Unknowns (ω3, ω4): columns b·j·e3, −c·j·e4 (metres).
-        b, c, th4 = geometry["coupler"], geometry["rocker"], k["theta4"]
+        b, c, th4 = geometry.coupler, geometry.rocker, k["theta4"]
         return _cond2(-b * np.sin(th3), c * np.sin(th4), b * np.cos(th3), -c * np.cos(th4))
     if kind == "slider_crank":
         # Unknowns (r3·ω3, v4), so both columns carry metres per second.
         return _cond2(-np.sin(th3), -1.0 + 0 * th3, np.cos(th3), 0 * th3)
     # Link 3 slides along link 4 pivoting at O4: unknowns (ρ·ω3, ḃ),
     # ρ = |A − O4|, unit columns j·(A − O4)/ρ and e3.
-    a, d = geometry["crank"], geometry["ground"]
+    a, d = geometry.crank, geometry.ground
     rx, ry = a * np.cos(th2) - d, a * np.sin(th2)
     rho = np.hypot(rx, ry)
     return _cond2(-ry / rho, np.cos(th3), rx / rho, np.sin(th3))
 
 
-def check_trustworthy(scenario: Scenario) -> None:
-    """Refuse a scenario whose reference cannot be trusted at some sample:
+def check_trustworthy(scenario: Scenario, closed: ClosedForm) -> None:
+    """Refuse a scenario of the closed form `closed` whose reference cannot be trusted at some sample:
     values that overflow float64, or a configuration too close to singular
     (condition number above SINGULAR_COND). Names the instant and why."""
     with np.errstate(all="ignore"):       # overflow is detected and reported below
-        _check_trustworthy(scenario)
+        _check_trustworthy(scenario, closed)
 
 
-def _check_trustworthy(scenario: Scenario) -> None:
-    module = linkage(scenario.mechanism)
+def _check_trustworthy(scenario: Scenario, closed: ClosedForm) -> None:
     t = scenario.time.t
-    kinematics = module.kinematics(module.Geometry(**scenario.geometry), scenario.drive, t)
+    kinematics = closed.kinematics(t)
     _refuse_nonfinite(scenario, t, np.column_stack(list(kinematics.values())), "drive",
                       "the crank's motion overflows float64")
-    cond = jacobian_condition(scenario.mechanism, scenario.geometry, kinematics)
+    cond = jacobian_condition(closed.kind, closed.geometry, kinematics)
     worst = int(np.argmax(np.where(np.isfinite(cond), cond, np.inf)))
     if not cond[worst] <= SINGULAR_COND:
         raise ScenarioError(scenario.source, "geometry",
@@ -140,27 +140,32 @@ def _refuse_nonfinite(scenario: Scenario, t: np.ndarray, values: np.ndarray, key
 
 def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
     if scenario.forward_dynamics:
-        key = "drive.type" if scenario.planar is None else "initial"
-        raise ScenarioError(scenario.source, key, "`mechval analyse` follows a prescribed motion; this scene's "
+        raise ScenarioError(scenario.source, scenario.key("initial"), "`mechval analyse` follows a prescribed motion; this scene's "
                                                   "motion is integrated (torque-driven or free): see it with "
                                                   "`mechval simulate --engine reference`")
-    if scenario.mechanism == "planar":
+    closed = scenario.closed_form
+    if closed is None:
         return analyse_planar(scenario, samples)
-    geometry = scenario.geometry
-    module = linkage(scenario.mechanism)
+    return analyse_closed_form(scenario, closed, samples)
+
+
+def analyse_closed_form(scenario: Scenario, closed: ClosedForm, samples: int | None = None) -> Analysis:
+    """The closed form's own analysis: Grashof or its slider rule, the
+    transmission angle, toggles, the loop Jacobian's condition."""
+    g, kind_name = closed.geometry, closed.kind
     t = np.linspace(0.0, scenario.time.end, samples or max(scenario.time.samples, 2001))
-    k = module.kinematics(module.Geometry(**geometry), scenario.drive, t)
+    k = closed.kinematics(t)
     th2, th3 = k["theta2"], k["theta3"]
     toggles = []
     quick_return = measured = None
-    if scenario.mechanism == "fourbar":
+    if kind_name == "fourbar":
         th4 = k["theta4"]
-        grashof, kind = fourbar_type(geometry["ground"], geometry["crank"], geometry["coupler"], geometry["rocker"])
+        grashof, kind = fourbar_type(g.ground, g.crank, g.coupler, g.rocker)
         mu = np.abs(np.arcsin(np.sin(th4 - th3)))   # acute angle coupler–rocker
         toggles += [(float(x), "toggle: crank and coupler collinear (rocker at a limit, ω4 = 0)")
                     for x in _sign_changes(t, np.sin(th3 - th2))]
-    elif scenario.mechanism == "slider_crank":
-        r2, r3, e = geometry["crank"], geometry["conrod"], geometry["offset"]
+    elif kind_name == "slider_crank":
+        r2, r3, e = g.crank, g.conrod, g.offset
         full = r3 > r2 + abs(e)
         grashof = "crank turns fully (conrod > crank + |offset|)" if full else \
             "crank cannot turn fully (conrod ≤ crank + |offset|)"
@@ -169,24 +174,24 @@ def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
         toggles += [(float(x), "dead centre: crank and conrod collinear (slider at a limit, v4 = 0)")
                     for x in _sign_changes(t, np.sin(th3 - th2))]
     else:   # slotted_lever, inverted_slider: link 3 slides along link 4, which pivots at O4
-        a, d, c = geometry["crank"], geometry["ground"], geometry.get("offset", 0.0)
+        a, d, c = g.crank, g.ground, getattr(g, "offset", 0.0)
         grashof = "crank turns fully (|ground − crank| > offset)" if abs(a - d) > c else \
             "crank cannot turn fully (|ground − crank| ≤ offset)"
         kind = {("slotted_lever", True): "crank-slotted lever (quick-return)",
                 ("slotted_lever", False): "Whitworth quick-return (the lever turns fully)",
                 ("inverted_slider", True): "inverted slider-crank, rocking rod",
-                ("inverted_slider", False): "inverted slider-crank, rotating rod"}[scenario.mechanism, a < d]
+                ("inverted_slider", False): "inverted slider-crank, rotating rod"}[kind_name, a < d]
         # The pin force is normal to the slide, the pin moves normal to the
         # crank: μ = 90° with the crank along the slide, 0 at a stroke end.
         mu = np.arcsin(np.abs(np.cos(th2 - th3)))
         toggles += [(float(x), "stroke end: crank perpendicular to the slide (link 3 at a limit, ω3 = 0)")
                     for x in _sign_changes(t, np.cos(th2 - th3))]
-        quick_return = module.quick_return_ratio(module.Geometry(**geometry))
+        quick_return = closed.module.quick_return_ratio(g)
         measured = measured_stroke_ratio(t, k["omega3"], k["omega2"])
-    cond = jacobian_condition(scenario.mechanism, geometry, k)
+    cond = jacobian_condition(kind_name, g, k)
     worst = int(np.argmax(cond))
     return Analysis(
-        scenario=scenario.name, mechanism=scenario.mechanism, grashof=grashof, linkage_type=kind,
+        scenario=scenario.name, mechanism=kind_name, grashof=grashof, linkage_type=kind,
         transmission_min=float(mu.min()), transmission_max=float(mu.max()),
         transmission_t_min=float(t[int(np.argmin(mu))]), toggles=tuple(sorted(toggles)),
         jacobian_cond_max=float(cond[worst]), jacobian_cond_t=float(t[worst]),

@@ -18,7 +18,7 @@ from mechval.harness import cli
 from mechval.engines import registry
 from mechval.harness.run_limits import Limits, check_run, run_size
 from mechval.scenario import ScenarioError
-from mechval.scenarios import builtin_path, load, loader, parse
+from mechval.scenarios import builtin_path, kinds, load, parse
 from mechval.harness.simulate import simulate
 from scenario_data import fourbar, slider_crank
 
@@ -34,12 +34,12 @@ def refused(data, key: str, words: str) -> ScenarioError:
 
 @pytest.fixture
 def nothing_evaluated(monkeypatch):
-    """Fail if the loader evaluates anything at the samples: a refusal of
+    """Fail if the kinds' front end evaluates anything at the samples: a refusal of
     a resource bomb must come first."""
     def evaluated(*args):
         raise AssertionError("the loader evaluated the scene before refusing it")
-    monkeypatch.setattr(loader, "_dense_times", evaluated)
-    monkeypatch.setattr(loader, "check_trustworthy", evaluated)
+    monkeypatch.setattr(kinds, "_dense_times", evaluated)
+    monkeypatch.setattr(kinds, "check_trustworthy", evaluated)
 
 
 @pytest.mark.parametrize("samples", [9223372036854775807, 10**18, 10**7, 10**4000])

@@ -75,7 +75,7 @@ samples = 51
 
 
 def guide(scenario):
-    return next(j for j in scenario.planar.joints if j.name == "guide")
+    return next(j for j in scenario.scene.joints if j.name == "guide")
 
 
 def test_a_slider_drawn_aligned_with_the_world_stays_so():

@@ -120,7 +120,9 @@ def test_the_assembly_pose_picks_the_branch():
     """The seed four-bar's joints close on two branches; a pose near the
     crossed one gives the crossed closed form, not the open one."""
     seed = builtin_scenario("fourbar-seed")
-    crossed = dataclasses.replace(seed, geometry={**seed.geometry, "branch": "crossed"})
+    closed = seed.closed_form
+    crossed = dataclasses.replace(seed, closed_form=dataclasses.replace(
+        closed, geometry=dataclasses.replace(closed.geometry, branch="crossed")))
     open_mech, crossed_mech = build_mechanism(seed), build_mechanism(crossed)
     assert open_mech.joints == crossed_mech.joints
     t = seed.time.t

@@ -21,10 +21,11 @@ def test_builtin_loads(name):
 
 def test_defaults_for_omitted_tables():
     scenario = parse(fourbar(effects=None), "defaults")
-    assert scenario.gravity is None and scenario.damping == {}
+    scene = scenario.scene
+    assert scene.gravity == (0.0, 0.0) and all(j.damping == 0.0 for j in scene.joints) and not scene.forces
     assert scenario.tolerance["angle"] == 1e-3 and scenario.tolerance["force"] == 1e-2
-    rocker = scenario.mass["rocker"]
-    assert rocker.com == pytest.approx(0.25) and rocker.izz == pytest.approx(25.0 * 0.5**2 / 12)
+    rocker = next(b for b in scene.bodies if b.name == "rocker")
+    assert rocker.com == pytest.approx((0.25, 0.0)) and rocker.izz == pytest.approx(25.0 * 0.5**2 / 12)
 
 
 def test_engine_tolerance_override():

@@ -34,6 +34,7 @@ import mechval.planar_positions as positions
 from mechval.planar_solver import MechanismError, PlanarSolver, raw_planar
 from mechval.reference import raw_reference
 from scales import motion_scales, size
+from twins import twin
 
 #: What "agrees" means for the general reference, as a fraction of each
 #: quantity's scale (angles: absolute, rad).
@@ -534,5 +535,5 @@ def test_a_run_too_long_to_follow_is_refused_naming_time_end(monkeypatch):
 def test_the_longest_planar_built_in_stays_within_the_step_limit(monkeypatch):
     """The 509-revolution twin is followed within two thirds of the limit."""
     monkeypatch.setattr(positions, "MAX_STEPS", positions.MAX_STEPS * 2 // 3)
-    scenario = builtin_scenario("planar-twins/fourbar-long-run")
+    scenario = twin("fourbar-long-run")
     assert PlanarSolver(build_mechanism(scenario)).solve(scenario.time.t).facts["continuation_nodes"] > 10_000

@@ -44,7 +44,7 @@ MAX_MASS_RATIO = 1e9
 MIN_MASS = 1e-9
 MIN_INERTIA = 1e-14
 #: Farthest centre of mass from its link's nearest joint, in units of the
-#: mechanism's size (its largest joint coordinate or link length). Beyond it
+#: mechanism's size (its scene's largest joint coordinate). Beyond it
 #: the centre of mass sets the scale of the solvers' coordinates and the
 #: joints drown in their rounding. fourbar-seed (size 0.6 m) with the
 #: rocker's centre of mass 1e5 m out (1.7e5 sizes) fails every engine

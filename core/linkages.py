@@ -43,10 +43,6 @@ Geometry = (fourbar.FourBarGeometry | slider_crank.SliderCrankGeometry
             | slotted_lever.SlottedLeverGeometry | inverted_slider.InvertedSliderGeometry)
 
 
-def linkage(kind: str) -> ModuleType:
-    return LINKAGES[kind]
-
-
 @dataclass(frozen=True)
 class ClosedForm:
     """A kind's closed-form motion of its scene: the crank at O2 follows

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import crank_pin, interval_extremes, solve_loop_rates
+from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, sign_changes, solve_loop_rates
 from .mechanism import GROUND, Body, Joint
 from .scenario import LinkMass, ScenarioError
 
@@ -167,3 +167,35 @@ def assembly_side(g: FourBarGeometry, raw) -> np.ndarray:
     (B left of A→O4), < 0 on the crossed one."""
     ax, ay, th3 = (np.asarray(raw[f"coupler.{q}"]) for q in ("x", "y", "theta"))
     return (g.ground - ax) * np.sin(th3) - (-ay) * np.cos(th3)
+
+
+def fourbar_type(ground: float, crank: float, coupler: float, rocker: float) -> tuple[str, str]:
+    """Grashof condition s + l vs p + q and the resulting linkage type
+    (Norton §2.12)."""
+    lengths = {"ground": ground, "crank": crank, "coupler": coupler, "rocker": rocker}
+    ordered = sorted(lengths.values())
+    s_plus_l, p_plus_q = ordered[0] + ordered[3], ordered[1] + ordered[2]
+    if np.isclose(s_plus_l, p_plus_q, rtol=1e-12):
+        return "change point (s + l = p + q)", "change-point linkage"
+    if s_plus_l > p_plus_q:
+        return "non-Grashof (s + l > p + q)", "triple-rocker"
+    shortest = min(lengths, key=lengths.get)
+    kind = {"ground": "double-crank", "crank": "crank-rocker", "rocker": "crank-rocker (rocker-crank)",
+            "coupler": "double-rocker"}[shortest]
+    return "Grashof (s + l < p + q)", kind
+
+
+def analysis(g: FourBarGeometry, k: dict[str, np.ndarray], t: np.ndarray) -> LoopAnalysis:
+    """Grashof, the coupler–rocker transmission angle, the toggles (crank
+    and coupler collinear) over the kinematics k at instants t."""
+    th2, th3, th4 = k["theta2"], k["theta3"], k["theta4"]
+    grashof, kind = fourbar_type(g.ground, g.crank, g.coupler, g.rocker)
+    toggles = [(float(x), "toggle: crank and coupler collinear (rocker at a limit, ω4 = 0)")
+               for x in sign_changes(t, np.sin(th3 - th2))]
+    return LoopAnalysis(grashof, kind, np.abs(np.arcsin(np.sin(th4 - th3))), toggles)
+
+
+def jacobian_condition(g: FourBarGeometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    """Unknowns (ω3, ω4): columns b·j·e3, −c·j·e4 (metres)."""
+    b, c, th3, th4 = g.coupler, g.rocker, k["theta3"], k["theta4"]
+    return cond2(-b * np.sin(th3), c * np.sin(th4), b * np.cos(th3), -c * np.cos(th4))

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import crank_pin, interval_extremes
+from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, measured_stroke_ratio, sign_changes
 from .mechanism import GROUND, MOTION_QUANTITIES, Body, Joint
 from .scenario import LinkMass, ScenarioError
 
@@ -219,3 +219,38 @@ def scene_parts(g: InvertedSliderGeometry, mass: Mapping[str, LinkMass],
 def assembly_indicator(g: InvertedSliderGeometry) -> None:
     """No indicator: the sleeve's side is fixed by its axis (0, σ)."""
     return None
+
+
+def slide_analysis(crank: float, ground: float, offset: float, k: dict[str, np.ndarray], t: np.ndarray,
+                   types: tuple[str, str], quick_return: float | None) -> LoopAnalysis:
+    """The analysis of a linkage whose link 3 slides along link 4, which
+    pivots at O4 (this one and the slotted lever): whether the crank turns
+    fully, μ, the stroke ends; `types`: its linkage type when link 3 rocks
+    (crank < ground) and when it turns fully."""
+    th2, th3 = k["theta2"], k["theta3"]
+    grashof = ("crank turns fully (|ground − crank| > offset)" if abs(crank - ground) > offset else
+               "crank cannot turn fully (|ground − crank| ≤ offset)")
+    # The pin force is normal to the slide, the pin moves normal to the
+    # crank: μ = 90° with the crank along the slide, 0 at a stroke end.
+    toggles = [(float(x), "stroke end: crank perpendicular to the slide (link 3 at a limit, ω3 = 0)")
+               for x in sign_changes(t, np.cos(th2 - th3))]
+    return LoopAnalysis(grashof, types[0] if crank < ground else types[1], np.arcsin(np.abs(np.cos(th2 - th3))),
+                        toggles, quick_return, measured_stroke_ratio(t, k["omega3"], k["omega2"]))
+
+
+def slide_condition(crank: float, ground: float, k: dict[str, np.ndarray]) -> np.ndarray:
+    """Link 3 slides along link 4 pivoting at O4: unknowns (ρ·ω3, ḃ),
+    ρ = |A − O4|, unit columns j·(A − O4)/ρ and e3."""
+    th2, th3 = k["theta2"], k["theta3"]
+    rx, ry = crank * np.cos(th2) - ground, crank * np.sin(th2)
+    rho = np.hypot(rx, ry)
+    return cond2(-ry / rho, np.cos(th3), rx / rho, np.sin(th3))
+
+
+def analysis(g: InvertedSliderGeometry, k: dict[str, np.ndarray], t: np.ndarray) -> LoopAnalysis:
+    return slide_analysis(g.crank, g.ground, g.offset, k, t, ("inverted slider-crank, rocking rod",
+                          "inverted slider-crank, rotating rod"), quick_return_ratio(g))
+
+
+def jacobian_condition(g: InvertedSliderGeometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    return slide_condition(g.crank, g.ground, k)

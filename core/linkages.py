@@ -1,7 +1,8 @@
 """The one path from a scenario's scene to its `Mechanism`, and the closed
 forms of the four kinds mechval knows: each kind's module has the same small
 interface (Geometry dataclass, LINKS, PINS, SIGNAL_MAP, scene_parts,
-check_closure, kinematics, body_motion, assembly_indicator).
+check_closure, kinematics, body_motion, assembly_indicator, analysis,
+jacobian_condition).
 
 A scene with a closed form takes its motion, canonical signal names and
 assembly-branch indicator from it (the reference is then the closed form);
@@ -67,6 +68,12 @@ class ClosedForm:
 
     def motion(self, t: np.ndarray) -> pd.DataFrame:
         return self.module.body_motion(self.geometry, self.law, np.asarray(t, dtype=float))
+
+    def jacobian_condition(self, k: dict[str, np.ndarray]) -> np.ndarray:
+        """2-norm condition number of the loop's velocity Jacobian at each
+        instant of the kinematics k, columns scaled to the same units
+        (distance to singularity)."""
+        return self.module.jacobian_condition(self.geometry, k)
 
     def assembly(self) -> Callable[[Mapping[str, np.ndarray]], np.ndarray] | None:
         return self.module.assembly_indicator(self.geometry)

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import crank_pin, interval_extremes
+from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, sign_changes
 from .mechanism import GROUND, Body, Joint
 from .scenario import LinkMass, ScenarioError
 
@@ -135,3 +135,22 @@ def assembly_side(raw) -> np.ndarray:
     """x of B relative to the crank pin A (the rod's x extent): > 0 on the
     right branch, < 0 on the left one."""
     return np.cos(np.asarray(raw["conrod.theta"]))
+
+
+def analysis(g: SliderCrankGeometry, k: dict[str, np.ndarray], t: np.ndarray) -> LoopAnalysis:
+    """Whether the crank turns fully, the conrod's transmission angle to the
+    guide's normal, the dead centres (crank and conrod collinear)."""
+    r2, r3, e = g.crank, g.conrod, g.offset
+    th2, th3 = k["theta2"], k["theta3"]
+    grashof = ("crank turns fully (conrod > crank + |offset|)" if r3 > r2 + abs(e) else
+               "crank cannot turn fully (conrod ≤ crank + |offset|)")
+    toggles = [(float(x), "dead centre: crank and conrod collinear (slider at a limit, v4 = 0)")
+               for x in sign_changes(t, np.sin(th3 - th2))]
+    return LoopAnalysis(grashof, "offset slider-crank" if e else "in-line slider-crank",
+                        np.pi / 2 - np.abs(np.arcsin(np.sin(th3))), toggles)
+
+
+def jacobian_condition(g: SliderCrankGeometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    """Unknowns (r3·ω3, v4), so both columns carry metres per second."""
+    th3 = k["theta3"]
+    return cond2(-np.sin(th3), -1.0 + 0 * th3, np.cos(th3), 0 * th3)

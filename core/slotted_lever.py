@@ -33,8 +33,9 @@ import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .inverted_slider import first_instant, frames_table, pivot_reach, slide_loop, slide_signal_map, stroke_time_ratio
-from .loop import crank_pin
+from .inverted_slider import (first_instant, frames_table, pivot_reach, slide_analysis, slide_condition, slide_loop,
+                              slide_signal_map, stroke_time_ratio)
+from .loop import LoopAnalysis, crank_pin
 from .mechanism import GROUND, Body, Joint
 from .scenario import LinkMass, ScenarioError
 
@@ -122,3 +123,12 @@ def scene_parts(g: SlottedLeverGeometry, mass: Mapping[str, LinkMass],
 def assembly_indicator(g: SlottedLeverGeometry) -> None:
     """No indicator: the lever's slot takes the block on either side."""
     return None
+
+
+def analysis(g: SlottedLeverGeometry, k: dict[str, np.ndarray], t: np.ndarray) -> LoopAnalysis:
+    return slide_analysis(g.crank, g.ground, 0.0, k, t, ("crank-slotted lever (quick-return)",
+                          "Whitworth quick-return (the lever turns fully)"), quick_return_ratio(g))
+
+
+def jacobian_condition(g: SlottedLeverGeometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    return slide_condition(g.crank, g.ground, k)

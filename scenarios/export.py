@@ -23,15 +23,15 @@ Point = tuple[float, float]
 
 def planar_file(scenario: Scenario) -> str:
     """The TOML text of `scenario` as a planar file named NAME-planar."""
-    kind = scenario.mechanism
-    scenario = without_closed_form(scenario) if scenario.closed_form else scenario
+    kind, expanded = scenario.mechanism, scenario.closed_form is not None
+    scenario = without_closed_form(scenario) if expanded else scenario
     scene = scenario.scene
     points = _points(scene.joints, scene.forces)
-    name = scenario.name if kind == "planar" else f"{scenario.name}-planar"
+    name = f"{scenario.name}-planar" if expanded else scenario.name
     out = [f"# The scenario {_value(scenario.name)} ({kind}) written as a planar file by `mechval export`:",
            "# the same bodies, frames, joints, drives and forces (docs/scenario-format.md#planar-files).",
            f"name = {_value(name)}", 'mechanism = "planar"',
-           f"description = {_value(scenario.description + (' (as a planar file)' if kind != 'planar' else ''))}"]
+           f"description = {_value(scenario.description + (' (as a planar file)' if expanded else ''))}"]
     if scenario.tags:
         out.append(f"tags = {_value(list(scenario.tags))}")
     out += ["", "[ground]"] + [f"{p} = {_value(xy)}" for p, xy in points.get(GROUND, {}).items()]

@@ -19,7 +19,9 @@ from .dynamics import raw_dynamics
 from .mechanism import BodyPose, Mechanism
 from .planar_solver import default_pose
 from .planar_constraints import MechanismError
-from .scenario import Scenario, ScenarioError
+from .scenario import ScenarioError
+from .scene import Scene
+
 
 class IntegratedMotion:
     """A torque-driven or free mechanism's `motion`: the raw motion columns
@@ -41,19 +43,16 @@ class IntegratedMotion:
         return frame[["t"] + self.mechanism.motion_columns()].iloc[start:].reset_index(drop=True)
 
 
-def with_dynamics(scenario: Scenario, prescribed: Mechanism) -> Mechanism:
-    """`prescribed` (built with the scene's prescribed drives, or for a
-    torque-driven or free crank a stand-in law at its initial angle) as
-    the scene asks: no prescribed crank when the scene has none, the torque
-    laws and initial values, the assembly pose of the stand-in at t = 0
-    (it picks the branch), and the integrated motion."""
+def with_dynamics(source, scene: Scene, prescribed: Mechanism) -> Mechanism:
+    """`prescribed` (built with the scene's drives; for a closed-form kind
+    with its closed form's motion from the crank's initial angle and rate)
+    as the scene asks: the torque laws and initial values, the assembly pose
+    of `prescribed` at t = 0 (it picks the branch), and the integrated
+    motion (refused as bad input of the file `source`)."""
     pose = {name: BodyPose(p.theta, p.x, p.y) for name, p in default_pose(prescribed, 0.0).items()}
-    motion = IntegratedMotion(scenario.source)
+    motion = IntegratedMotion(source)
     mechanism = dataclasses.replace(
-        prescribed, drive=prescribed.drive if scenario.drive is not None else None,
-        extra_drives=prescribed.extra_drives if scenario.drive is not None else (),
-        torque_drives=scenario.torque_laws, initial_values=scenario.initial_values, assembly_pose=pose,
-        motion=motion)
+        prescribed, torque_drives=scene.torques, initial_values=scene.initial, assembly_pose=pose, motion=motion)
     # A free crank has no effort: its T12 is not a signal (a torque law's is the law).
     efforts = set(mechanism.reaction_columns())
     signals = {name: raw for name, raw in mechanism.signal_map.items()

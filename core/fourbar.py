@@ -1,4 +1,4 @@
-"""Four-bar linkage: closed-form kinematics and its generic `Mechanism`.
+"""Four-bar linkage: closed-form kinematics and its scene.
 
 Links (classic numbering): 1 ground O2→O4 of length d along +x, 2 crank
 O2→A (a), 3 coupler A→B (b), 4 rocker O4→B (c). Vector loop (Norton eq. 4.5a)
@@ -18,14 +18,15 @@ Branch "open": B lies left of the directed line A→O4 (convex O2-A-B-O4);
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, Mapping
 
 import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import crank_pin, interval_extremes, solve_loop_rates
-from .mechanism import GROUND, Body, Drive, Joint, Mechanism
-from .scenario import Scenario, ScenarioError
+from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, sign_changes, solve_loop_rates
+from .mechanism import GROUND, Body, Joint
+from .scenario import LinkMass, ScenarioError
 
 LINKS = ("crank", "coupler", "rocker")
 PINS = ("O2", "A", "B", "O4")
@@ -142,32 +143,23 @@ SIGNAL_MAP = {
 }
 
 
-def geometry_of(scenario: Scenario) -> FourBarGeometry:
-    return FourBarGeometry(**scenario.geometry)
-
-
-def build_mechanism(scenario: Scenario) -> Mechanism:
+def scene_parts(g: FourBarGeometry, mass: Mapping[str, LinkMass],
+                damping: Mapping[str, float]) -> tuple[tuple[Body, ...], tuple[Joint, ...]]:
     """Bodies with frames at their first joint, x along the link; joints
     ordered (body_i, body_j) so each reaction is the canonical Fij."""
-    g = geometry_of(scenario)
     a, b, c, d = g.crank, g.coupler, g.rocker, g.ground
-    bodies = tuple(Body(link, m.mass, (m.com, 0.0), m.izz) for link, m in
-                   ((link, scenario.mass[link]) for link in LINKS))
-    damp = scenario.damping
+    bodies = tuple(Body(link, mass[link].mass, (mass[link].com, 0.0), mass[link].izz) for link in LINKS)
     joints = (
-        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damp.get("O2", 0.0)),
-        Joint("A", "revolute", "coupler", "crank", (0.0, 0.0), (a, 0.0), damping=damp.get("A", 0.0)),
-        Joint("B", "revolute", "rocker", "coupler", (c, 0.0), (b, 0.0), damping=damp.get("B", 0.0)),
-        Joint("O4", "revolute", GROUND, "rocker", (d, 0.0), (0.0, 0.0), damping=damp.get("O4", 0.0)),
+        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damping.get("O2", 0.0)),
+        Joint("A", "revolute", "coupler", "crank", (0.0, 0.0), (a, 0.0), damping=damping.get("A", 0.0)),
+        Joint("B", "revolute", "rocker", "coupler", (c, 0.0), (b, 0.0), damping=damping.get("B", 0.0)),
+        Joint("O4", "revolute", GROUND, "rocker", (d, 0.0), (0.0, 0.0), damping=damping.get("O4", 0.0)),
     )
-    law = scenario.drive
-    return Mechanism(
-        name=scenario.name, kind="fourbar", bodies=bodies, joints=joints,
-        drive=Drive("O2", law), gravity=tuple(scenario.gravity or (0.0, 0.0)),
-        motion=lambda t: body_motion(g, law, np.asarray(t, dtype=float)),
-        signal_map=SIGNAL_MAP,
-        assembly=lambda raw: assembly_side(g, raw),
-    )
+    return bodies, joints
+
+
+def assembly_indicator(g: FourBarGeometry) -> Callable[[Mapping[str, np.ndarray]], np.ndarray]:
+    return lambda raw: assembly_side(g, raw)
 
 
 def assembly_side(g: FourBarGeometry, raw) -> np.ndarray:
@@ -175,3 +167,35 @@ def assembly_side(g: FourBarGeometry, raw) -> np.ndarray:
     (B left of A→O4), < 0 on the crossed one."""
     ax, ay, th3 = (np.asarray(raw[f"coupler.{q}"]) for q in ("x", "y", "theta"))
     return (g.ground - ax) * np.sin(th3) - (-ay) * np.cos(th3)
+
+
+def fourbar_type(ground: float, crank: float, coupler: float, rocker: float) -> tuple[str, str]:
+    """Grashof condition s + l vs p + q and the resulting linkage type
+    (Norton §2.12)."""
+    lengths = {"ground": ground, "crank": crank, "coupler": coupler, "rocker": rocker}
+    ordered = sorted(lengths.values())
+    s_plus_l, p_plus_q = ordered[0] + ordered[3], ordered[1] + ordered[2]
+    if np.isclose(s_plus_l, p_plus_q, rtol=1e-12):
+        return "change point (s + l = p + q)", "change-point linkage"
+    if s_plus_l > p_plus_q:
+        return "non-Grashof (s + l > p + q)", "triple-rocker"
+    shortest = min(lengths, key=lengths.get)
+    kind = {"ground": "double-crank", "crank": "crank-rocker", "rocker": "crank-rocker (rocker-crank)",
+            "coupler": "double-rocker"}[shortest]
+    return "Grashof (s + l < p + q)", kind
+
+
+def analysis(g: FourBarGeometry, k: dict[str, np.ndarray], t: np.ndarray) -> LoopAnalysis:
+    """Grashof, the coupler–rocker transmission angle, the toggles (crank
+    and coupler collinear) over the kinematics k at instants t."""
+    th2, th3, th4 = k["theta2"], k["theta3"], k["theta4"]
+    grashof, kind = fourbar_type(g.ground, g.crank, g.coupler, g.rocker)
+    toggles = [(float(x), "toggle: crank and coupler collinear (rocker at a limit, ω4 = 0)")
+               for x in sign_changes(t, np.sin(th3 - th2))]
+    return LoopAnalysis(grashof, kind, np.abs(np.arcsin(np.sin(th4 - th3))), toggles)
+
+
+def jacobian_condition(g: FourBarGeometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    """Unknowns (ω3, ω4): columns b·j·e3, −c·j·e4 (metres)."""
+    b, c, th3, th4 = g.coupler, g.rocker, k["theta3"], k["theta4"]
+    return cond2(-b * np.sin(th3), c * np.sin(th4), b * np.cos(th3), -c * np.cos(th4))

@@ -1,4 +1,4 @@
-"""Inverted slider-crank (hand pump): closed-form kinematics and its `Mechanism`.
+"""Inverted slider-crank (hand pump): closed-form kinematics and its scene.
 
 Inversion #3 of the slider-crank chain (Norton §4.7, Fig. 4-10): the sliding
 joint is between links 3 and 4. Links: 1 ground O2→O4 of length d along +x,
@@ -29,14 +29,15 @@ lever (`mechval.slotted_lever`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import crank_pin, interval_extremes
-from .mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, Joint, Mechanism
-from .scenario import Scenario, ScenarioError
+from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, measured_stroke_ratio, sign_changes
+from .mechanism import GROUND, MOTION_QUANTITIES, Body, Joint
+from .scenario import LinkMass, ScenarioError
 
 LINKS = ("crank", "rod", "rocker")
 PINS = ("O2", "A", "sleeve", "O4")
@@ -194,33 +195,62 @@ def slide_signal_map(links: tuple[str, str, str], slide: str) -> dict[str, str]:
 SIGNAL_MAP = slide_signal_map(LINKS, "sleeve")
 
 
-def geometry_of(scenario: Scenario) -> InvertedSliderGeometry:
-    return InvertedSliderGeometry(**scenario.geometry)
-
-
-def build_mechanism(scenario: Scenario) -> Mechanism:
+def scene_parts(g: InvertedSliderGeometry, mass: Mapping[str, LinkMass],
+                damping: Mapping[str, float]) -> tuple[tuple[Body, ...], tuple[Joint, ...]]:
     """Bodies with frames at O2, A and O4 (see `body_motion`); the rod's
     centre of mass lies `com` from A towards B, i.e. at (−com, 0). The sleeve
     is a prismatic joint (rocker, rod): the rod's point A moves along the
     rocker-frame axis (0, σ) through B = (c, 0); its reaction F43 acts at A
     with the couple M43."""
-    g = geometry_of(scenario)
-    m = scenario.mass
+    m = mass
     bodies = (Body("crank", m["crank"].mass, (m["crank"].com, 0.0), m["crank"].izz),
               Body("rod", m["rod"].mass, (-m["rod"].com, 0.0), m["rod"].izz),
               Body("rocker", m["rocker"].mass, (m["rocker"].com, 0.0), m["rocker"].izz))
-    damp = scenario.damping
     joints = (
-        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damp.get("O2", 0.0)),
-        Joint("A", "revolute", "rod", "crank", (0.0, 0.0), (g.crank, 0.0), damping=damp.get("A", 0.0)),
+        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damping.get("O2", 0.0)),
+        Joint("A", "revolute", "rod", "crank", (0.0, 0.0), (g.crank, 0.0), damping=damping.get("A", 0.0)),
         Joint("sleeve", "prismatic", "rocker", "rod", (g.offset, 0.0), (0.0, 0.0), axis=(0.0, g.sign),
-              damping=damp.get("sleeve", 0.0)),
-        Joint("O4", "revolute", GROUND, "rocker", (g.ground, 0.0), (0.0, 0.0), damping=damp.get("O4", 0.0)),
+              damping=damping.get("sleeve", 0.0)),
+        Joint("O4", "revolute", GROUND, "rocker", (g.ground, 0.0), (0.0, 0.0), damping=damping.get("O4", 0.0)),
     )
-    law = scenario.drive
-    return Mechanism(
-        name=scenario.name, kind="inverted_slider", bodies=bodies, joints=joints,
-        drive=Drive("O2", law), gravity=tuple(scenario.gravity or (0.0, 0.0)),
-        motion=lambda t: body_motion(g, law, np.asarray(t, dtype=float)),
-        signal_map=SIGNAL_MAP,
-    )
+    return bodies, joints
+
+
+def assembly_indicator(g: InvertedSliderGeometry) -> None:
+    """No indicator: the sleeve's side is fixed by its axis (0, σ)."""
+    return None
+
+
+def slide_analysis(crank: float, ground: float, offset: float, k: dict[str, np.ndarray], t: np.ndarray,
+                   types: tuple[str, str], quick_return: float | None) -> LoopAnalysis:
+    """The analysis of a linkage whose link 3 slides along link 4, which
+    pivots at O4 (this one and the slotted lever): whether the crank turns
+    fully, μ, the stroke ends; `types`: its linkage type when link 3 rocks
+    (crank < ground) and when it turns fully."""
+    th2, th3 = k["theta2"], k["theta3"]
+    grashof = ("crank turns fully (|ground − crank| > offset)" if abs(crank - ground) > offset else
+               "crank cannot turn fully (|ground − crank| ≤ offset)")
+    # The pin force is normal to the slide, the pin moves normal to the
+    # crank: μ = 90° with the crank along the slide, 0 at a stroke end.
+    toggles = [(float(x), "stroke end: crank perpendicular to the slide (link 3 at a limit, ω3 = 0)")
+               for x in sign_changes(t, np.cos(th2 - th3))]
+    return LoopAnalysis(grashof, types[0] if crank < ground else types[1], np.arcsin(np.abs(np.cos(th2 - th3))),
+                        toggles, quick_return, measured_stroke_ratio(t, k["omega3"], k["omega2"]))
+
+
+def slide_condition(crank: float, ground: float, k: dict[str, np.ndarray]) -> np.ndarray:
+    """Link 3 slides along link 4 pivoting at O4: unknowns (ρ·ω3, ḃ),
+    ρ = |A − O4|, unit columns j·(A − O4)/ρ and e3."""
+    th2, th3 = k["theta2"], k["theta3"]
+    rx, ry = crank * np.cos(th2) - ground, crank * np.sin(th2)
+    rho = np.hypot(rx, ry)
+    return cond2(-ry / rho, np.cos(th3), rx / rho, np.sin(th3))
+
+
+def analysis(g: InvertedSliderGeometry, k: dict[str, np.ndarray], t: np.ndarray) -> LoopAnalysis:
+    return slide_analysis(g.crank, g.ground, g.offset, k, t, ("inverted slider-crank, rocking rod",
+                          "inverted slider-crank, rotating rod"), quick_return_ratio(g))
+
+
+def jacobian_condition(g: InvertedSliderGeometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    return slide_condition(g.crank, g.ground, k)

@@ -18,8 +18,7 @@ from .scenario import Scenario, ScenarioError
 from .adapter import as_float
 from .reference import ReferenceAdapter
 from .drive import DriveLaw
-from .planar_scene import signal_map as planar_signal_map
-from .signals import signal_names
+from .scene import signal_map as scene_signal_map
 
 #: Most output instants per scenario. The loader itself evaluates the
 #: reference at every sample (closure and trust checks): at 10⁶ samples that
@@ -45,7 +44,7 @@ MAX_MASS_RATIO = 1e9
 MIN_MASS = 1e-9
 MIN_INERTIA = 1e-14
 #: Farthest centre of mass from its link's nearest joint, in units of the
-#: mechanism's size (its largest joint coordinate or link length). Beyond it
+#: mechanism's size (its scene's largest joint coordinate). Beyond it
 #: the centre of mass sets the scale of the solvers' coordinates and the
 #: joints drown in their rounding. fourbar-seed (size 0.6 m) with the
 #: rocker's centre of mass 1e5 m out (1.7e5 sizes) fails every engine
@@ -77,10 +76,9 @@ def check_scene(scenario: Scenario) -> None:
         angle, when = crank_angle_peak(law.phi0, law.omega0, law.alpha, end)
         if angle > MAX_CRANK_ANGLE:
             raise fail(key, _angle_reason(angle, f"at t = {when:.6g} s") + "; shorten time.end or lower omega0/alpha")
-    for value in scenario.initial_values:       # a torque-driven or free run's start
+    for value in scenario.scene.initial:        # a torque-driven or free run's start
         if abs(value.value) > MAX_CRANK_ANGLE:
-            key = "drive.phi0" if scenario.planar is None else f"initial.{value.joint}"
-            raise fail(key, _angle_reason(abs(value.value), "at t = 0"))
+            raise fail(scenario.key(f"initial.{value.joint}"), _angle_reason(abs(value.value), "at t = 0"))
     masses = _masses(scenario)
     heaviest = max(mass for _, mass, _ in masses)
     for key, mass, izz in masses:        # the moving links
@@ -103,45 +101,31 @@ def check_scene(scenario: Scenario) -> None:
 
 
 def _drive_laws(scenario: Scenario) -> list[tuple[str, DriveLaw]]:
-    """(key, law) of every drive: the [drive] table, or a planar file's [[drive]]s."""
-    if scenario.planar is None:
-        return [("drive", scenario.drive)] if scenario.drive is not None else []
-    return [(f"drive[{k}]", drive.law) for k, drive in enumerate(scenario.planar.drives)]
+    """(key, law) of every drive."""
+    return [(scenario.key(f"drive[{k}]"), drive.law) for k, drive in enumerate(scenario.scene.drives)]
 
 
 def _masses(scenario: Scenario) -> list[tuple[str, float, float]]:
-    """(key, mass, izz) of every moving link."""
-    if scenario.planar is None:
-        return [(f"mass.{link}", m.mass, m.izz) for link, m in scenario.mass.items()]
-    return [(f"body[{k}]", b.mass, b.izz) for k, b in enumerate(scenario.planar.bodies)]
+    """(key, mass, izz) of every moving body."""
+    return [(scenario.key(f"body[{k}]"), b.mass, b.izz) for k, b in enumerate(scenario.scene.bodies)]
 
 
 def _size(scenario: Scenario) -> float:
-    """The mechanism's size (m): its largest link length or offset, or a
-    planar file's largest joint coordinate (body frames; world for the
-    ground)."""
-    if scenario.planar is None:
-        values = [abs(v) for v in scenario.geometry.values() if isinstance(v, (int, float)) and not isinstance(v, bool)]
-    else:
-        values = [abs(v) for j in scenario.planar.joints for p in (j.point_i, j.point_j) for v in p]
+    """The mechanism's size (m): its largest joint coordinate (body
+    frames; world for the ground)."""
+    values = [abs(v) for j in scenario.scene.joints for p in (j.point_i, j.point_j) for v in p]
     return max(values, default=0.0) or 1.0
 
 
 def _com_distances(scenario: Scenario) -> list[tuple[str, float]]:
-    """(key, distance in m) of every moving link's centre of mass from the
-    nearest of its joints: along a bar link from either end (the four
-    kinds' `com` is measured from its first joint), or to the nearest of a
-    planar body's joint points."""
-    if scenario.planar is None:
-        def bar(link: str, com: float) -> float:
-            length = scenario.geometry.get(link)
-            return min(abs(com), abs(com - length)) if isinstance(length, (int, float)) else abs(com)
-        return [(f"mass.{link}", bar(link, m.com)) for link, m in scenario.mass.items()]
+    """(key, distance in m) of every moving body's centre of mass from the
+    nearest of its joint points."""
     distances = []
-    for k, body in enumerate(scenario.planar.bodies):
-        points = [p for j in scenario.planar.joints for b, p in ((j.body_i, j.point_i), (j.body_j, j.point_j))
+    for k, body in enumerate(scenario.scene.bodies):
+        points = [p for j in scenario.scene.joints for b, p in ((j.body_i, j.point_i), (j.body_j, j.point_j))
                   if b == body.name]
-        distances.append((f"body[{k}].com", min((math.dist(body.com, p) for p in points), default=0.0)))
+        distances.append((scenario.key(f"body[{k}].com"), min((math.dist(body.com, p) for p in points),
+                                                              default=0.0)))
     return distances
 
 
@@ -167,9 +151,8 @@ def reference_bytes(scenario: Scenario) -> float:
 
 def signal_count(scenario: Scenario) -> int:
     """Columns of the scenario's canonical signals (t included)."""
-    if scenario.planar is None:
-        return len(signal_names(scenario.mechanism))
-    return 1 + len(planar_signal_map(scenario.planar))
+    closed = scenario.closed_form
+    return 1 + len(closed.signal_map if closed else scene_signal_map(scenario.scene))
 
 
 def _gib(size: float) -> str:

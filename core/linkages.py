@@ -1,26 +1,85 @@
-"""The mechanism kinds mechval knows: each has a closed-form reference
-module with the same small interface (geometry dataclass, LINKS, PINS,
-check_closure, kinematics, body_motion, build_mechanism)."""
+"""The one path from a scenario's scene to its `Mechanism`, and the closed
+forms of the four kinds mechval knows: each kind's module has the same small
+interface (Geometry dataclass, LINKS, PINS, SIGNAL_MAP, scene_parts,
+check_closure, kinematics, body_motion, assembly_indicator, analysis,
+jacobian_condition).
+
+A scene with a closed form takes its motion, canonical signal names and
+assembly-branch indicator from it (the reference is then the closed form);
+a scene without one is solved by the general reference
+(`mechval.planar_solver`); a torque-driven or free scene's motion is
+integrated (`mechval.dynamic_scene`). Nothing else differs: the bodies,
+joints, drives and forces are the scene's.
+"""
 
 from __future__ import annotations
 
 import dataclasses
 from collections import OrderedDict
+from dataclasses import dataclass
 from types import ModuleType
+from typing import Callable, Mapping
+
+import numpy as np
+import pandas as pd
 
 from . import fourbar, inverted_slider, slider_crank, slotted_lever
 from .drive import DriveLaw
 from .dynamic_scene import with_dynamics
-from .mechanism import Mechanism
-from .planar_scene import build_mechanism as build_planar
+from .mechanism import Drive, Mechanism
+from .planar_scene import SolvedMotion, has_redundant_constraints
+from .planar_solver import default_pose
+from .resultants import RESULTANT_SIGNALS
 from .scenario import Scenario
+from .scene import signal_map as scene_signal_map
 
 LINKAGES: dict[str, ModuleType] = {"fourbar": fourbar, "slider_crank": slider_crank,
                                    "slotted_lever": slotted_lever, "inverted_slider": inverted_slider}
+#: The crank's pivot joint in every closed-form kind's scene.
+CRANK_PIVOT = "O2"
+#: `Mechanism.kind` of a scene without a closed form.
+GENERAL = "planar"
+
+Geometry = (fourbar.FourBarGeometry | slider_crank.SliderCrankGeometry
+            | slotted_lever.SlottedLeverGeometry | inverted_slider.InvertedSliderGeometry)
 
 
-def linkage(kind: str) -> ModuleType:
-    return LINKAGES[kind]
+@dataclass(frozen=True)
+class ClosedForm:
+    """A kind's closed-form motion of its scene: the crank at O2 follows
+    `law` (a torque-driven or free crank's stand-in: its initial angle and
+    rate, which picks the branch its integrated motion starts on)."""
+
+    kind: str
+    geometry: Geometry
+    law: DriveLaw
+
+    @property
+    def module(self) -> ModuleType:
+        return LINKAGES[self.kind]
+
+    @property
+    def signal_map(self) -> Mapping[str, str]:
+        """Canonical signal (theta2, F12x, …) → raw column."""
+        return self.module.SIGNAL_MAP
+
+    def kinematics(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        return self.module.kinematics(self.geometry, self.law, t)
+
+    def motion(self, t: np.ndarray) -> pd.DataFrame:
+        return self.module.body_motion(self.geometry, self.law, np.asarray(t, dtype=float))
+
+    def jacobian_condition(self, k: dict[str, np.ndarray]) -> np.ndarray:
+        """2-norm condition number of the loop's velocity Jacobian at each
+        instant of the kinematics k, columns scaled to the same units
+        (distance to singularity)."""
+        return self.module.jacobian_condition(self.geometry, k)
+
+    def assembly(self) -> Callable[[Mapping[str, np.ndarray]], np.ndarray] | None:
+        return self.module.assembly_indicator(self.geometry)
+
+    def check_closure(self, t: np.ndarray, source, key: str = "geometry") -> None:
+        self.module.check_closure(self.geometry, self.law, t, source, key=key)
 
 
 #: The mechanisms of the last scenarios built, by the scenario's identity
@@ -33,26 +92,46 @@ _BUILT_KEPT = 64
 
 
 def build_mechanism(scenario: Scenario) -> Mechanism:
-    """The generic `Mechanism` of a validated scenario (a planar file's
-    from its bodies and joints, `mechval.planar_scene`; a torque-driven or
-    free scene's with the integrated motion, `mechval.dynamic_scene`); the
-    same object for the same scenario object while it is among the last
-    built."""
+    """The generic `Mechanism` of a validated scenario, from its scene;
+    the same object for the same scenario object while it is among the
+    last built."""
     kept = _BUILT.get(id(scenario))
     if kept is not None and kept[0] is scenario:
         _BUILT.move_to_end(id(scenario))
         return kept[1]
-    if scenario.mechanism == "planar":
-        mechanism = build_planar(scenario)
-    elif scenario.drive is None:    # a torque-driven or free crank: built at its initial angle and rate
-        start = scenario.initial_values[0]
-        stand_in = dataclasses.replace(scenario, drive=DriveLaw(start.value, start.rate))
-        mechanism = LINKAGES[scenario.mechanism].build_mechanism(stand_in)
-    else:
-        mechanism = LINKAGES[scenario.mechanism].build_mechanism(scenario)
-    if scenario.forward_dynamics:
-        mechanism = with_dynamics(scenario, mechanism)
+    mechanism = _built(scenario)
     _BUILT[id(scenario)] = (scenario, mechanism)
     if len(_BUILT) > _BUILT_KEPT:
         _BUILT.popitem(last=False)
     return mechanism
+
+
+def _built(scenario: Scenario) -> Mechanism:
+    scene, closed = scenario.scene, scenario.closed_form
+    solved = SolvedMotion()      # it needs the mechanism it belongs to
+    mechanism = Mechanism(
+        name=scenario.name, kind=closed.kind if closed else GENERAL, bodies=scene.bodies, joints=scene.joints,
+        drive=scene.drives[0] if scene.drives else None, extra_drives=scene.drives[1:], gravity=scene.gravity,
+        motion=closed.motion if closed else solved,
+        signal_map=dict(closed.signal_map) if closed else scene_signal_map(scene),
+        assembly=closed.assembly() if closed else None, forces=scene.forces, assembly_pose=dict(scene.pose))
+    solved.mechanism = mechanism
+    if closed is None and has_redundant_constraints(mechanism):
+        # Reactions not unique: each body's resultant is (docs/conventions.md).
+        mechanism.signal_map.update({f"{b.name}.{q}": f"{b.name}.{suffix}" for b in scene.bodies
+                                     for q, suffix in RESULTANT_SIGNALS.items()})
+    return with_dynamics(scenario.source, scene, mechanism) if scene.forward_dynamics else mechanism
+
+
+def without_closed_form(scenario: Scenario) -> Scenario:
+    """The same scene for the general reference: its closed form's pose at
+    t = 0 as the assembly pose (it picks the branch). The cross-check of
+    every closed form (tests/test_planar_scenarios.py)."""
+    pose = {**default_pose(build_mechanism(scenario), 0.0), **scenario.scene.pose}
+    scene = dataclasses.replace(scenario.scene, pose=pose)
+    return dataclasses.replace(scenario, scene=scene, closed_form=None)
+
+
+def crank_drive(law: DriveLaw) -> Drive:
+    """The prescribed crank of a closed-form kind."""
+    return Drive(CRANK_PIVOT, law)

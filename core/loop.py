@@ -7,6 +7,8 @@ ch. 4 (position), 6 (velocity), 7 (acceleration), complex-number
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 
@@ -51,3 +53,50 @@ def interval_extremes(theta_lo: float, theta_hi: float, fn) -> tuple[float, floa
     candidates = [theta_lo, theta_hi] + [shift + k * np.pi for k in np.arange(k_lo, min(k_hi, k_lo + 1) + 1)]
     values = fn(np.array(candidates))
     return float(values.min()), float(values.max())
+
+
+@dataclass(frozen=True)
+class LoopAnalysis:
+    """A closed form's own engineering analysis over a run (`mechval.analysis`):
+    its Grashof condition or slider rule, linkage type, transmission angle
+    μ at each instant (rad, acute), toggle instants (t, what), and for a
+    quick-return linkage the forward/return stroke time ratio, closed form
+    (constant crank speed) and measured from the run's motion."""
+
+    grashof: str
+    linkage_type: str
+    transmission: np.ndarray
+    toggles: list[tuple[float, str]]
+    quick_return: float | None = None
+    quick_return_measured: float | None = None
+
+
+def sign_changes(t: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Instants where f changes sign, linearly interpolated between samples."""
+    k = np.flatnonzero(np.signbit(f[:-1]) != np.signbit(f[1:]))
+    return t[k] - f[k] * (t[k + 1] - t[k]) / (f[k + 1] - f[k])
+
+
+def cond2(m11, m12, m21, m22) -> np.ndarray:
+    """2-norm condition number of 2×2 matrices from their singular values."""
+    frob2 = m11**2 + m12**2 + m21**2 + m22**2
+    det = np.abs(m11 * m22 - m12 * m21)
+    root = np.sqrt(np.maximum(frob2**2 - 4 * det**2, 0.0))
+    s_max = np.sqrt((frob2 + root) / 2)
+    with np.errstate(divide="ignore"):
+        return np.where(det > 0, s_max**2 / np.where(det > 0, det, 1.0), np.inf)
+
+
+def measured_stroke_ratio(t: np.ndarray, omega_out: np.ndarray, omega2: np.ndarray) -> float | None:
+    """Mean forward over mean return stroke time of a rocking link: strokes
+    run between sign changes of its rate; a forward stroke turns it the way
+    the crank turns. None without a complete stroke of each kind."""
+    ends = sign_changes(t, omega_out)
+    if len(ends) < 3:
+        return None
+    mid = (ends[:-1] + ends[1:]) / 2
+    forward = np.sign(np.interp(mid, t, omega_out)) == np.sign(np.interp(mid, t, omega2))
+    if forward.all() or not forward.any():
+        return None
+    durations = np.diff(ends)
+    return float(durations[forward].mean() / durations[~forward].mean())

@@ -1,19 +1,22 @@
 """The validated scenario model (SI units) and the error bad input raises.
 
 A `Scenario` is what a scenario file says, after `mechval.scenarios.load`
-has checked every key; the `Mechanism` built from it is what adapters see.
+has checked every key: its scene and, for the four kinds, its closed form;
+the `Mechanism` built from it is what adapters see.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
 
-from .drive import DriveLaw
-from .mechanism import InitialValue, TorqueLaw
+from .scene import Scene
+
+if TYPE_CHECKING:                       # the closed forms import this module
+    from .linkages import ClosedForm
 
 
 #: Longest key and reason shown in an error message: a key, or a value a
@@ -105,35 +108,38 @@ class EngineTable:
 
 @dataclass(frozen=True)
 class Scenario:
+    """A scenario file's facts (name, time grid, tolerances, engine tables)
+    and its scene (`mechval.scene`); a closed-form kind's file also gives
+    the scene's closed form (`mechval.linkages.ClosedForm`)."""
+
     name: str
-    mechanism: str
     description: str
-    geometry: Mapping[str, Any]
-    mass: Mapping[str, LinkMass]
-    #: The prescribed crank law; None for a torque-driven or free crank
-    #: (`dynamics`) or a planar file without drives.
-    drive: DriveLaw | None
-    gravity: tuple[float, float] | None
-    damping: Mapping[str, float]
+    scene: Scene
     time: TimeGrid
     tolerance: Tolerance
     engines: Mapping[str, EngineTable] = field(default_factory=dict)
     tags: tuple[str, ...] = ()
     source: Path | None = None
-    #: A planar file's bodies, joints, drives, forces and assembly pose
-    #: (`mechval.planar_scene.PlanarScene`); None for the four kinds.
-    planar: Any = None
-    #: Torque-driven and free motion (docs/scenario-format.md): applied
-    #: joint torque laws and the initial values a run starts from, one per
-    #: degree of freedom no drive prescribes (`mechval.dynamics`).
-    torque_laws: tuple[TorqueLaw, ...] = ()
-    initial_values: tuple[InitialValue, ...] = ()
+    closed_form: ClosedForm | None = None
+    #: The file's own key of a scene element, where the front end names it
+    #: otherwise than a planar file would ("body[0]" → "mass.crank"): bad
+    #: input found in the scene is reported under the key the user wrote.
+    keys: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def mechanism(self) -> str:
+        """The file's `mechanism`: the closed form's kind, or "planar"."""
+        return self.closed_form.kind if self.closed_form else "planar"
 
     @property
     def forward_dynamics(self) -> bool:
         """True when the motion is integrated rather than prescribed
         (`Mechanism.forward_dynamics`)."""
-        return self.drive is None or bool(self.torque_laws) or bool(self.initial_values)
+        return self.scene.forward_dynamics
+
+    def key(self, scene_key: str) -> str:
+        """The file's key for the planar-file key `scene_key` (see `keys`)."""
+        return self.keys.get(scene_key, scene_key)
 
     def tolerance_for(self, engine: str | None) -> Tolerance:
         """The scenario's tolerance with the engine's overrides applied."""

@@ -1,4 +1,4 @@
-"""Offset slider-crank: closed-form kinematics and its generic `Mechanism`.
+"""Offset slider-crank: closed-form kinematics and its scene.
 
 Links: 1 ground with the guide y = e, 2 crank O2→A (r2), 3 connecting rod
 A→B (r3), 4 slider at B = (x4, e). Vector loop (Norton eq. 4.14a)
@@ -17,14 +17,15 @@ accelerations follow from the differentiated loop (Norton eqs. 6.20, 7.16):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, Mapping
 
 import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .loop import crank_pin, interval_extremes
-from .mechanism import GROUND, Body, Drive, Joint, Mechanism
-from .scenario import Scenario, ScenarioError
+from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, sign_changes
+from .mechanism import GROUND, Body, Joint
+from .scenario import LinkMass, ScenarioError
 
 LINKS = ("crank", "conrod", "slider")
 PINS = ("O2", "A", "B", "guide")
@@ -112,34 +113,44 @@ SIGNAL_MAP = {
 }
 
 
-def geometry_of(scenario: Scenario) -> SliderCrankGeometry:
-    return SliderCrankGeometry(**scenario.geometry)
-
-
-def build_mechanism(scenario: Scenario) -> Mechanism:
-    g = geometry_of(scenario)
+def scene_parts(g: SliderCrankGeometry, mass: Mapping[str, LinkMass],
+                damping: Mapping[str, float]) -> tuple[tuple[Body, ...], tuple[Joint, ...]]:
     r2, r3, e = g.crank, g.conrod, g.offset
-    bodies = tuple(Body(link, m.mass, (m.com, 0.0), m.izz) for link, m in
-                   ((link, scenario.mass[link]) for link in LINKS))
-    damp = scenario.damping
+    bodies = tuple(Body(link, mass[link].mass, (mass[link].com, 0.0), mass[link].izz) for link in LINKS)
     joints = (
-        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damp.get("O2", 0.0)),
-        Joint("A", "revolute", "conrod", "crank", (0.0, 0.0), (r2, 0.0), damping=damp.get("A", 0.0)),
-        Joint("B", "revolute", "slider", "conrod", (0.0, 0.0), (r3, 0.0), damping=damp.get("B", 0.0)),
+        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damping.get("O2", 0.0)),
+        Joint("A", "revolute", "conrod", "crank", (0.0, 0.0), (r2, 0.0), damping=damping.get("A", 0.0)),
+        Joint("B", "revolute", "slider", "conrod", (0.0, 0.0), (r3, 0.0), damping=damping.get("B", 0.0)),
         Joint("guide", "prismatic", GROUND, "slider", (0.0, e), (0.0, 0.0), axis=(1.0, 0.0),
-              damping=damp.get("guide", 0.0)),
+              damping=damping.get("guide", 0.0)),
     )
-    law = scenario.drive
-    return Mechanism(
-        name=scenario.name, kind="slider_crank", bodies=bodies, joints=joints,
-        drive=Drive("O2", law), gravity=tuple(scenario.gravity or (0.0, 0.0)),
-        motion=lambda t: body_motion(g, law, np.asarray(t, dtype=float)),
-        signal_map=SIGNAL_MAP,
-        assembly=assembly_side,
-    )
+    return bodies, joints
+
+
+def assembly_indicator(g: SliderCrankGeometry) -> Callable[[Mapping[str, np.ndarray]], np.ndarray]:
+    return assembly_side
 
 
 def assembly_side(raw) -> np.ndarray:
     """x of B relative to the crank pin A (the rod's x extent): > 0 on the
     right branch, < 0 on the left one."""
     return np.cos(np.asarray(raw["conrod.theta"]))
+
+
+def analysis(g: SliderCrankGeometry, k: dict[str, np.ndarray], t: np.ndarray) -> LoopAnalysis:
+    """Whether the crank turns fully, the conrod's transmission angle to the
+    guide's normal, the dead centres (crank and conrod collinear)."""
+    r2, r3, e = g.crank, g.conrod, g.offset
+    th2, th3 = k["theta2"], k["theta3"]
+    grashof = ("crank turns fully (conrod > crank + |offset|)" if r3 > r2 + abs(e) else
+               "crank cannot turn fully (conrod ≤ crank + |offset|)")
+    toggles = [(float(x), "dead centre: crank and conrod collinear (slider at a limit, v4 = 0)")
+               for x in sign_changes(t, np.sin(th3 - th2))]
+    return LoopAnalysis(grashof, "offset slider-crank" if e else "in-line slider-crank",
+                        np.pi / 2 - np.abs(np.arcsin(np.sin(th3))), toggles)
+
+
+def jacobian_condition(g: SliderCrankGeometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    """Unknowns (r3·ω3, v4), so both columns carry metres per second."""
+    th3 = k["theta3"]
+    return cond2(-np.sin(th3), -1.0 + 0 * th3, np.cos(th3), 0 * th3)

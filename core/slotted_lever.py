@@ -1,4 +1,4 @@
-"""Crank-slotted lever (shaper quick-return): kinematics and its `Mechanism`.
+"""Crank-slotted lever (shaper quick-return): kinematics and its scene.
 
 Inversion of the slider-crank chain in which the guide turns: links 1 ground
 O2→O4 of length r1 along +x (lever pivot O4 = (r1, 0)), 2 crank O2→A (r2),
@@ -27,15 +27,17 @@ lasts longer than the return: time ratio (π + 2·asin(r2/r1)) /
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 import pandas as pd
 
 from .drive import DriveLaw
-from .inverted_slider import first_instant, frames_table, pivot_reach, slide_loop, slide_signal_map, stroke_time_ratio
-from .loop import crank_pin
-from .mechanism import GROUND, Body, Drive, Joint, Mechanism
-from .scenario import Scenario, ScenarioError
+from .inverted_slider import (first_instant, frames_table, pivot_reach, slide_analysis, slide_condition, slide_loop,
+                              slide_signal_map, stroke_time_ratio)
+from .loop import LoopAnalysis, crank_pin
+from .mechanism import GROUND, Body, Joint
+from .scenario import LinkMass, ScenarioError
 
 LINKS = ("crank", "block", "lever")
 PINS = ("O2", "A", "slot", "O4")
@@ -102,29 +104,31 @@ def check_closure(g: SlottedLeverGeometry, law: DriveLaw, t: np.ndarray, source,
 SIGNAL_MAP = slide_signal_map(LINKS, "slot")
 
 
-def geometry_of(scenario: Scenario) -> SlottedLeverGeometry:
-    return SlottedLeverGeometry(**scenario.geometry)
-
-
-def build_mechanism(scenario: Scenario) -> Mechanism:
+def scene_parts(g: SlottedLeverGeometry, mass: Mapping[str, LinkMass],
+                damping: Mapping[str, float]) -> tuple[tuple[Body, ...], tuple[Joint, ...]]:
     """The slot is a prismatic joint (lever, block): the block's pin A moves
     along the lever's x axis through O4; its reaction F43 acts at A with the
     couple M43. The block's centre of mass is its pin A."""
-    g = geometry_of(scenario)
-    bodies = tuple(Body(link, m.mass, (m.com, 0.0), m.izz) for link, m in
-                   ((link, scenario.mass[link]) for link in LINKS))
-    damp = scenario.damping
+    bodies = tuple(Body(link, mass[link].mass, (mass[link].com, 0.0), mass[link].izz) for link in LINKS)
     joints = (
-        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damp.get("O2", 0.0)),
-        Joint("A", "revolute", "block", "crank", (0.0, 0.0), (g.crank, 0.0), damping=damp.get("A", 0.0)),
+        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0), damping=damping.get("O2", 0.0)),
+        Joint("A", "revolute", "block", "crank", (0.0, 0.0), (g.crank, 0.0), damping=damping.get("A", 0.0)),
         Joint("slot", "prismatic", "lever", "block", (0.0, 0.0), (0.0, 0.0), axis=(1.0, 0.0),
-              damping=damp.get("slot", 0.0)),
-        Joint("O4", "revolute", GROUND, "lever", (g.ground, 0.0), (0.0, 0.0), damping=damp.get("O4", 0.0)),
+              damping=damping.get("slot", 0.0)),
+        Joint("O4", "revolute", GROUND, "lever", (g.ground, 0.0), (0.0, 0.0), damping=damping.get("O4", 0.0)),
     )
-    law = scenario.drive
-    return Mechanism(
-        name=scenario.name, kind="slotted_lever", bodies=bodies, joints=joints,
-        drive=Drive("O2", law), gravity=tuple(scenario.gravity or (0.0, 0.0)),
-        motion=lambda t: body_motion(g, law, np.asarray(t, dtype=float)),
-        signal_map=SIGNAL_MAP,
-    )
+    return bodies, joints
+
+
+def assembly_indicator(g: SlottedLeverGeometry) -> None:
+    """No indicator: the lever's slot takes the block on either side."""
+    return None
+
+
+def analysis(g: SlottedLeverGeometry, k: dict[str, np.ndarray], t: np.ndarray) -> LoopAnalysis:
+    return slide_analysis(g.crank, g.ground, 0.0, k, t, ("crank-slotted lever (quick-return)",
+                          "Whitworth quick-return (the lever turns fully)"), quick_return_ratio(g))
+
+
+def jacobian_condition(g: SlottedLeverGeometry, k: dict[str, np.ndarray]) -> np.ndarray:
+    return slide_condition(g.crank, g.ground, k)

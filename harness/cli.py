@@ -30,6 +30,7 @@ from mechval.outcome import Outcome
 from mechval.outputs import not_a_regular_file
 from mechval.scenario import Scenario, ScenarioError, one_line
 from mechval.scenarios import builtin_names, load
+from mechval.scenarios.export import planar_file
 from mechval.signals import SIGNAL_CLASS, Signals
 
 from .audit_run import audit_all, audit_scenario
@@ -360,6 +361,11 @@ def cmd_analyse(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    sys.stdout.write(planar_file(_load(args.scenario)))
+    return 0
+
+
 def _add_limits(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-steps", type=_positive_int, default=DEFAULT_MAX_STEPS, metavar="N",
                         help=f"refuse an engine run of more steps (default {DEFAULT_MAX_STEPS:.0e}; README: Limits)")
@@ -429,6 +435,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("analyse", help="engineering analysis: Grashof, transmission angle, toggles")
     p.add_argument("scenario")
     p.set_defaults(func=cmd_analyse)
+    p = sub.add_parser("export", help="print the scenario's scene as a planar file (TOML)")
+    p.add_argument("scenario")
+    p.set_defaults(func=cmd_export)
     return parser
 
 

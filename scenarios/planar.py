@@ -1,6 +1,7 @@
 """Planar files (`mechanism = "planar"`, docs/scenario-format.md#planar-files):
 any mechanism of rigid bodies, revolute and prismatic joints, drives and
-force elements, validated into a `Scenario` whose `planar` holds the scene;
+force elements, validated into a `Scenario` whose scene is the file's as
+written (`mechval.scene`; no closed form: the general reference solves it);
 joints left undriven take applied torque laws (`[[torque]]`) and the
 initial values a run starts from (`[[initial]]`), checked by assembling the
 consistent initial state (`scenarios.dynamic`).
@@ -27,12 +28,12 @@ from mechval.drive import DriveLaw
 from mechval.limits import check_scene
 from mechval.linkages import build_mechanism
 from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, SpringDamper, TorqueLaw
-from mechval.planar_scene import PlanarScene
 from mechval.planar_solver import MechanismError, PlanarSolver
-from mechval.scenario import Scenario, ScenarioError, TimeGrid, Tolerance
+from mechval.scenario import Scenario, ScenarioError
+from mechval.scene import Scene
 
 from .dynamic import check_initial_state
-from .tables import Reader, engine_tables, scenario_name, shown, tolerance
+from .tables import Reader, heading, run_tables, shown
 
 TOP_KEYS = {"name", "mechanism", "description", "tags", "ground", "body", "joint", "drive", "torque",
             "initial", "force", "assembly", "effects", "time", "tolerance", "engines"}
@@ -48,11 +49,7 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
     """Validate a planar file's parsed TOML into a `Scenario` (SI units)."""
     top = Reader(source, "", data)
     top.only(TOP_KEYS)
-    name = scenario_name(top)
-    description = top.string("description", default="")
-    tags = data.get("tags", [])
-    if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
-        top.fail("tags", f"expected a list of strings, got {tags!r}")
+    name, _, description, tags = heading(top)
     ground = _points(top.sub("ground"))
     bodies, points = _bodies(top, ground)
     joints = _joints(top, points)
@@ -64,14 +61,10 @@ def parse_planar(data: Mapping[str, Any], source: str | Path | None = None,
     pose = _assembly(top.sub("assembly", required=True), bodies)
     joints = _held_angles(joints, pose)
     gravity = _gravity(top.sub("effects"))
-    time = _time(top.sub("time", required=True))
-    scene = PlanarScene(bodies, joints, drives, forces, pose, gravity, torques)
-    scenario = Scenario(name=name, mechanism="planar", description=description, geometry={}, mass={},
-                        drive=drives[0].law if drives else None, gravity=gravity, damping={}, time=time,
-                        tolerance=Tolerance().updated(tolerance(top.sub("tolerance"))),
-                        engines=engine_tables(top.sub("engines"), engines), tags=tuple(tags),
-                        source=Path(source) if source else None, planar=scene,
-                        torque_laws=torques, initial_values=initial)
+    time, tolerance, engine_tables = run_tables(top, engines)
+    scene = Scene(bodies, joints, drives, forces, pose, gravity, torques, initial)
+    scenario = Scenario(name=name, description=description, scene=scene, time=time, tolerance=tolerance,
+                        engines=engine_tables, tags=tags, source=Path(source) if source else None)
     check_scene(scenario)       # before the mechanism is followed over the run
     if scenario.forward_dynamics:
         check_initial_state(scenario)
@@ -336,16 +329,6 @@ def _held_angles(joints: tuple[Joint, ...], pose: Mapping[str, BodyPose]) -> tup
 def _gravity(table: Reader) -> tuple[float, float]:
     table.only({"gravity"})
     return _pair(table, "gravity", "[gx, gy] in m/s²") if "gravity" in table.table else (0.0, 0.0)
-
-
-def _time(table: Reader) -> TimeGrid:
-    table.only({"end", "samples"})
-    samples = table.table.get("samples")
-    if isinstance(samples, bool) or not isinstance(samples, int):
-        table.fail("samples", f"expected a whole number, got {samples!r}" if samples is not None else "missing value")
-    if samples < 2:
-        table.fail("samples", f"must be at least 2, got {samples}")
-    return TimeGrid(table.number("end", positive=True), samples)
 
 
 def _solvable(scenario: Scenario, source) -> None:

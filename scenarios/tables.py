@@ -1,6 +1,9 @@
-"""Typed access to a scenario file's tables, shared by both formats (the
-four kinds, `loader`; planar files, `planar`): every refusal a
-`ScenarioError` naming the file, the dotted key and the reason.
+"""Typed access to a scenario file's tables, and the one parser of what
+both formats share (the four kinds, `kinds`; planar files, `planar`): the
+top-level `name`, `mechanism`, `description` and `tags`, `[time]`,
+`[tolerance]`, `[engines.NAME]` and every number. Every refusal a
+`ScenarioError` naming the file, the dotted key and the reason; a value it
+quotes is quoted short, whatever its size (`shown`).
 """
 
 from __future__ import annotations
@@ -10,7 +13,8 @@ import reprlib
 from typing import Any, Collection, Mapping
 
 from mechval.limits import shown_int
-from mechval.scenario import DEFAULT_TOLERANCE, EngineTable, ScenarioError
+from mechval.linkages import LINKAGES
+from mechval.scenario import DEFAULT_TOLERANCE, EngineTable, ScenarioError, TimeGrid, Tolerance
 
 #: Largest magnitude accepted for any number (SI units): far beyond any
 #: linkage, small enough that products like m·L²·ω² stay within float64.
@@ -29,6 +33,39 @@ def scenario_name(top: "Reader") -> str:
     if len(name) > MAX_NAME_LENGTH:
         top.fail("name", f"at most {MAX_NAME_LENGTH} characters, got {len(name):,}")
     return name
+
+
+#: The formats a file's `mechanism` may name.
+MECHANISMS = (*LINKAGES, "planar")
+
+
+def heading(top: "Reader") -> tuple[str, str, str, tuple[str, ...]]:
+    """The file's name, mechanism, description and tags."""
+    name = scenario_name(top)
+    kind = top.string("mechanism", choices=MECHANISMS)
+    description = top.string("description", default="")
+    tags = top.table.get("tags", [])
+    if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
+        top.fail("tags", f"expected a list of strings, got {shown(tags)}")
+    return name, kind, description, tuple(tags)
+
+
+def run_tables(top: "Reader", engines: Collection[str] | None
+               ) -> tuple[TimeGrid, Tolerance, dict[str, EngineTable]]:
+    """The [time] grid, the [tolerance] and the [engines.NAME] tables."""
+    return (time_grid(top.sub("time", required=True)), Tolerance().updated(tolerance(top.sub("tolerance"))),
+            engine_tables(top.sub("engines"), engines))
+
+
+def time_grid(table: "Reader") -> TimeGrid:
+    table.only({"end", "samples"})
+    samples = table.table.get("samples")
+    if isinstance(samples, bool) or not isinstance(samples, int):
+        table.fail("samples", f"expected a whole number, got {shown(samples)}" if samples is not None
+                   else "missing value")
+    if samples < 2:
+        table.fail("samples", f"must be at least 2, got {shown_int(samples)}")
+    return TimeGrid(table.number("end", positive=True), samples)
 
 
 def shown(value: Any) -> str:

@@ -17,9 +17,9 @@ prints each engine's worst signals on each.
 from __future__ import annotations
 
 import tomllib
-from pathlib import Path
 
 from mechval.scenarios import parse
+from twins import twin_text
 
 #: fourbar-seed's links (Norton's crank-rocker of the published 9x9 study,
 #: docs/scenario-format.md), the base of the four-bar and six-bar scenes;
@@ -377,10 +377,10 @@ samples = 101
 #: drive reversed to keep the motion (θground − θcrank = −10·t): O2's
 #: reaction is then the force by the crank on the ground and O2.T the
 #: torque on the ground, minus the twin's (Newton's third law). 0.5 s.
-TWIN = (Path(__file__).parent.parent / "scenarios" / "planar-twins" / "slider-crank.toml").read_text()
+TWIN = twin_text("slider-crank")
 GROUND_SECOND = _edited(
     TWIN, ('name = "slider-crank-planar"', 'name = "slider-crank-ground-second"'),
-    ('between = ["ground.O2", "crank.start"]', 'between = ["crank.start", "ground.O2"]'),
+    ('between = ["ground.O2", "crank.O2"]', 'between = ["crank.O2", "ground.O2"]'),
     ("omega0 = 10.0", "omega0 = -10.0"), ("end = 2.0\nsamples = 401", "end = 0.5\nsamples = 101"))
 
 SCENES = {"five-bar": FIVE_BAR, "slider-driven": SLIDER_DRIVEN, "spring": FOURBAR_SPRING,

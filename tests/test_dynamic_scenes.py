@@ -294,7 +294,7 @@ def test_a_half_driven_planar_file_keeps_its_drive():
     mech = build_mechanism(scenario)
     assert len(mech.drives) == 1 and mech.initial_values and scenario.forward_dynamics
     frame = simulate_reference(scenario).frame
-    law, t = scenario.planar.drives[0].law, scenario.time.t
+    law, t = scenario.scene.drives[0].law, scenario.time.t
     joint = mech.joint(mech.drive.joint)
     relative = frame[f"{joint.body_j}.theta"] - (0.0 if joint.body_i == "ground" else frame[f"{joint.body_i}.theta"])
     assert np.abs(relative - law.angle(t)).max() <= 1e-12 and np.isfinite(frame[f"{joint.name}.T"]).all()

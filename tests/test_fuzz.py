@@ -29,12 +29,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import BUILTIN, engine_or_skip
+from conftest import BUILTIN, CLOSED_FORM, engine_or_skip
 from mechval.harness.cli import main
 from mechval.engines.registry import ENGINE_NAMES
 from mechval.scenarios import builtin_path
 from mechval.signals import SIGNAL_CLASS
 from toml_fuzz import Case, mutate, mutate_text
+from twins import twin_document
 
 #: Seconds one case may take before it counts as a hang (a refusal takes
 #: milliseconds; the slowest accepted case loads and simulates 10⁶ samples).
@@ -44,6 +45,10 @@ ENGINE_MAX_STEPS = 20_000
 
 
 def document(name: str) -> dict:
+    """A built-in file's document, or for "twin/NAME" the built-in NAME
+    written as a planar file (tests/twins.py)."""
+    if name.startswith("twin/"):
+        return twin_document(name.removeprefix("twin/"))
     return tomllib.loads(builtin_path(name).read_text(encoding="utf-8"))
 
 
@@ -134,11 +139,11 @@ def run_all(capfd, tmp_path, labelled_cases, engine: str = "reference", extra=()
     return statuses
 
 
-#: Planar files (`mechanism = "planar"`): the shipped twins of the built-ins,
-#: by path under scenarios/. The default run takes one of each kind; the
-#: 509-revolution twin (slow to follow) only in the slow run.
-PLANAR = sorted(f"planar-twins/{p.stem}" for p in (builtin_path("x").parent / "planar-twins").glob("*.toml"))
-PLANAR_DEFAULT = [f"planar-twins/{name}" for name in
+#: Planar files (`mechanism = "planar"`): the closed-form built-ins written
+#: as planar files ("twin/NAME", tests/twins.py). The default run takes one
+#: of each kind; the 509-revolution twin (slow to follow) only in the slow run.
+PLANAR = [f"twin/{name}" for name in CLOSED_FORM]
+PLANAR_DEFAULT = [f"twin/{name}" for name in
                   ("fourbar-seed", "slider-crank-offset", "shaper-quick-return", "hand-pump")]
 
 
@@ -152,7 +157,7 @@ def test_mutated_builtins_are_simulated_or_refused(capfd, tmp_path, name):
 def test_many_mutated_builtins(capfd, tmp_path, name):
     # the general reference follows the 509-revolution twin for about a
     # minute per case: 12 cases (as the default run takes of each), not 250
-    run_all(capfd, tmp_path, cases(name, 12 if name == "planar-twins/fourbar-long-run" else 250, seed=1))
+    run_all(capfd, tmp_path, cases(name, 12 if name == "twin/fourbar-long-run" else 250, seed=1))
 
 
 def engine_document(name: str, engine: str) -> dict:
@@ -325,7 +330,7 @@ def test_health_of_an_all_nan_run_warns_nothing():
 def test_a_scenario_name_is_at_most_100_characters(tmp_path):
     from mechval.scenario import ScenarioError
     from mechval.scenarios import parse
-    for name in ("fourbar-seed", "planar-twins/fourbar-seed"):
+    for name in ("fourbar-seed", "twin/fourbar-seed"):
         doc = document(name)
         assert parse({**doc, "name": "n" * 100}, "ok.toml").name == "n" * 100
         with pytest.raises(ScenarioError) as refused:
@@ -346,7 +351,7 @@ def test_a_built_in_name_names_a_built_in(tmp_path, capsys):
     assert refused.value.key == "file" and "no such scenario file or built-in scenario" in refused.value.reason
     assert main(["simulate", escape, "--csv", str(tmp_path / "x.csv")]) == 2
     assert capsys.readouterr().err.startswith(f"mechval: error: {escape}: file: no such scenario")
-    assert load("planar-twins/fourbar-seed").mechanism == "planar"      # names under scenarios/ stay names
+    assert load("planar-extra/double-fourbar-falling").mechanism == "planar"   # names under scenarios/ stay names
     assert load(str(tmp_path / "x.toml")).name == "slider-crank"
 
 

@@ -18,9 +18,10 @@ from mechval.harness import cli
 from mechval.engines import registry
 from mechval.harness.run_limits import Limits, check_run, run_size
 from mechval.scenario import ScenarioError
-from mechval.scenarios import builtin_path, load, loader, parse
+from mechval.scenarios import builtin_path, kinds, load, parse
 from mechval.harness.simulate import simulate
 from scenario_data import fourbar, slider_crank
+from twins import twin_document
 
 
 def refused(data, key: str, words: str) -> ScenarioError:
@@ -34,12 +35,12 @@ def refused(data, key: str, words: str) -> ScenarioError:
 
 @pytest.fixture
 def nothing_evaluated(monkeypatch):
-    """Fail if the loader evaluates anything at the samples: a refusal of
+    """Fail if the kinds' front end evaluates anything at the samples: a refusal of
     a resource bomb must come first."""
     def evaluated(*args):
         raise AssertionError("the loader evaluated the scene before refusing it")
-    monkeypatch.setattr(loader, "_dense_times", evaluated)
-    monkeypatch.setattr(loader, "check_trustworthy", evaluated)
+    monkeypatch.setattr(kinds, "_dense_times", evaluated)
+    monkeypatch.setattr(kinds, "check_trustworthy", evaluated)
 
 
 @pytest.mark.parametrize("samples", [9223372036854775807, 10**18, 10**7, 10**4000])
@@ -104,12 +105,13 @@ def test_the_distant_centre_of_mass_bound_is_where_the_reference_breaks(monkeypa
     the rocker (kinematics do not depend on it: angles within 1e-9 rad,
     measured 3e-12); 1e5 m out (1.7e5 sizes) it can no longer assemble the
     four-bar, its closure tolerance scaled by a size the centre of mass
-    sets."""
-    import tomllib
+    sets (from an approximate pose, as a file gives it: the closed form's
+    angles at t = 0 rounded to 0.01 rad)."""
     from mechval import limits
     from mechval.reference import simulate_reference
-    doc = tomllib.loads((builtin_path("x").parent / "planar-twins" / "fourbar-seed.toml").read_text(encoding="utf-8"))
+    doc = twin_document("fourbar-seed")
     doc["time"].update(end=1.0, samples=101)
+    doc["assembly"] = {body: round(theta, 2) for body, theta in doc["assembly"].items()}
     near = simulate_reference(parse(doc, "near.toml")).frame["rocker.theta"]
     doc["body"][2]["com"] = [5e3, 0.0]
     far = simulate_reference(parse(doc, "far.toml")).frame["rocker.theta"]
@@ -327,8 +329,7 @@ def test_summary_table_escapes_names_and_reasons():
 def test_planar_files_get_the_same_scene_bounds(edit, key):
     """A planar file is bounded like the four kinds, before the mechanism is
     followed over the run (10⁷ samples would otherwise be solved first)."""
-    import tomllib
-    doc = tomllib.loads((builtin_path("x").parent / "planar-twins" / "fourbar-seed.toml").read_text(encoding="utf-8"))
+    doc = twin_document("fourbar-seed")
     edit(doc)
     with pytest.raises(ScenarioError) as info:
         parse(doc, "twin.toml")

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from conftest import builtin_scenario
-from mechval.analysis import analyse, measured_stroke_ratio
+from mechval.analysis import analyse
+from mechval.loop import measured_stroke_ratio
 from mechval.linkages import build_mechanism
 from mechval.kinematics import joint_gap
 from mechval.mechanism import GROUND

@@ -1,5 +1,6 @@
-"""Planar files (`mechanism = "planar"`): the four kinds' built-ins written as
-planar files agree with their closed forms to 1e-12; their canonical
+"""Planar files (`mechanism = "planar"`): the four kinds' built-ins expand
+into the scene a planar file states and, written as planar files, agree
+with their closed forms to 1e-12; their canonical
 signals, health and analysis; mechanisms only planar files describe (two
 drives, springs, a redundant parallelogram) through the whole harness;
 every refusal names the file, the key and the reason."""
@@ -19,29 +20,30 @@ from conftest import CLOSED_FORM, builtin_scenario
 from mechval.adapter import mechanism_features
 from mechval.analysis import analyse, format_analysis
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
+from mechval.linkages import build_mechanism, without_closed_form
 from mechval.kinematics import point_motion
 from mechval.planar_solver import raw_planar
 from mechval.reference import raw_reference
 from mechval.scenario import ScenarioError
-from mechval.scenarios import parse
+from mechval.scenarios import load, parse
 from mechval.signals import SIGNAL_CLASS
 from scales import motion_scales, size
 from test_planar_solver import BOUND, column_scales, worst
+from twins import twin_document, twin_text
 
 ROOT = Path(__file__).resolve().parents[1]
-TWINS = ROOT / "scenarios" / "planar-twins"
 #: Runs too long for the default suite are checked on their first seconds.
 DEFAULT_END = {"fourbar-long-run": 2.0}
 
 
 def twin(name: str, end: float | None = None):
-    """The planar file of built-in `name`, its run cut at `end` if given."""
-    data = tomllib.loads((TWINS / f"{name}.toml").read_text(encoding="utf-8"))
+    """Built-in `name` written as a planar file (tests/twins.py) and loaded
+    back, its run cut at `end` if given."""
+    data = twin_document(name)
     if end is not None:
         data["time"] = {"end": end, "samples": int(round(end / builtin_scenario(name).time.end
                                                          * (builtin_scenario(name).time.samples - 1))) + 1}
-    return parse(data, TWINS / f"{name}.toml")
+    return parse(data, f"{name}-planar.toml")
 
 
 def agrees_with_its_closed_form(name: str, end: float | None) -> None:
@@ -57,8 +59,29 @@ def agrees_with_its_closed_form(name: str, end: float | None) -> None:
     assert error <= BOUND, f"{name}: {column} differs from the closed form by {error:.3g} of its scale"
 
 
-def test_every_builtin_has_a_planar_twin():
-    assert sorted(p.stem for p in TWINS.glob("*.toml")) == CLOSED_FORM
+@pytest.mark.parametrize("name", CLOSED_FORM + ["fourbar-falling", "slider-crank-motor"])
+def test_a_kind_expands_into_the_scene_its_planar_file_states(name):
+    """Every closed-form built-in (torque-driven and free ones too) is one
+    scene: written as a planar file and loaded back, it has the same bodies,
+    frames, joints, drives, torque laws, initial values, forces and gravity,
+    and no closed form."""
+    scenario, planar = builtin_scenario(name), twin(name)
+    assert scenario.closed_form is not None and planar.closed_form is None
+    for part in ("bodies", "joints", "drives", "torques", "initial", "forces", "gravity"):
+        assert getattr(planar.scene, part) == getattr(scenario.scene, part), part
+    assert (planar.time, planar.tolerance) == (scenario.time, scenario.tolerance)
+
+
+def test_the_general_reference_of_a_kind_needs_no_file():
+    """`without_closed_form`: the same scenario for the general reference."""
+    scenario = builtin_scenario("hand-pump")
+    general = without_closed_form(scenario)
+    assert general.closed_form is None and general.scene.joints == scenario.scene.joints
+    t = scenario.time.t[:41]
+    solved = raw_planar(build_mechanism(general), t).frame
+    closed = raw_reference(build_mechanism(scenario), t)
+    scale = np.abs(closed["rod.theta"]).max()
+    assert np.abs(solved["rod.theta"] - closed["rod.theta"]).max() <= BOUND * scale
 
 
 @pytest.mark.parametrize("name", CLOSED_FORM)
@@ -70,6 +93,16 @@ def test_planar_twin_agrees_with_the_closed_form(name):
 @pytest.mark.parametrize("name", sorted(DEFAULT_END))
 def test_planar_twin_agrees_over_the_whole_long_runs(name):
     agrees_with_its_closed_form(name, None)
+
+
+def test_mechval_export_prints_a_loadable_planar_file(tmp_path, capsys):
+    from mechval.harness.cli import main
+    assert main(["export", "slider-crank"]) == 0
+    path = tmp_path / "slider-crank-planar.toml"
+    path.write_text(capsys.readouterr().out, encoding="utf-8")
+    scenario = load(str(path))
+    assert scenario.name == "slider-crank-planar" and scenario.closed_form is None
+    assert scenario.scene.joints == builtin_scenario("slider-crank").scene.joints
 
 
 def test_canonical_signals_of_a_planar_file():
@@ -279,7 +312,7 @@ def test_refuses_the_instant_the_loop_cannot_close():
 
 def test_the_command_line_refuses_a_planar_file_in_one_line(tmp_path):
     bad = tmp_path / "bad.toml"
-    text = (TWINS / "fourbar-seed.toml").read_text(encoding="utf-8").replace('"crank.end"', '"crank.tip"')
+    text = twin_text("fourbar-seed").replace('"crank.A"', '"crank.tip"')
     bad.write_text(text, encoding="utf-8")
     result = subprocess.run([sys.executable, "-m", "mechval.harness.cli", "simulate", str(bad), "--engine",
                              "reference", "--csv", str(tmp_path / "out.csv")], capture_output=True, text=True)
@@ -304,8 +337,8 @@ def test_engines_are_refused_what_their_adapters_do_not_build(engine_name):
                                                 "build several drives yet"):
             simulate(scenario, engine)
     if "spring-dampers" not in engine.features:
-        data = tomllib.loads((TWINS / "fourbar-seed.toml").read_text(encoding="utf-8"))
-        data["force"] = [{"type": "spring", "between": ["coupler.end", "ground.O2"], "stiffness": 10.0,
+        data = twin_document("fourbar-seed")
+        data["force"] = [{"type": "spring", "between": ["coupler.B", "ground.O2"], "stiffness": 10.0,
                           "free_length": 0.5}]
         with pytest.raises(ScenarioError, match=rf"seed.toml: force.force1: {engine_name}: its adapter does not "
                                                 "build spring-dampers yet"):

@@ -16,7 +16,9 @@ import pytest
 from mechval.reference import simulate_reference
 from mechval.scenarios import parse
 from mechval.scenarios.planar import AXIS_SNAP
+from conftest import CLOSED_FORM
 from planar_scenes import SCENES
+from twins import twin_document
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -75,7 +77,7 @@ samples = 51
 
 
 def guide(scenario):
-    return next(j for j in scenario.planar.joints if j.name == "guide")
+    return next(j for j in scenario.scene.joints if j.name == "guide")
 
 
 def test_a_slider_drawn_aligned_with_the_world_stays_so():
@@ -108,9 +110,10 @@ def test_a_rounded_pose_holds_the_axis_angle_exactly():
 def shipped_planar_files() -> dict[str, dict]:
     """Every shipped planar file and test scene with a prismatic joint."""
     files = {str(path.relative_to(ROOT)): tomllib.loads(path.read_text())
-             for folder in ("scenarios", "scenarios/planar", "scenarios/planar-twins", "scenarios/planar-extra")
+             for folder in ("scenarios", "scenarios/planar", "scenarios/planar-extra")
              for path in sorted((ROOT / folder).glob("*.toml"))}
     files.update({f"tests/planar_scenes.py:{name}": tomllib.loads(text) for name, text in SCENES.items()})
+    files.update({f"twin:{name}": twin_document(name) for name in CLOSED_FORM})
     return {name: data for name, data in files.items() if data.get("mechanism") == "planar"
             and any(j.get("type") == "prismatic" for j in data.get("joint", []))}
 
@@ -119,7 +122,7 @@ SHIPPED = shipped_planar_files()
 
 
 def test_every_shipped_slide_is_checked():
-    assert {"scenarios/planar-twins/hand-pump.toml", "scenarios/planar-twins/shaper-quick-return.toml",
+    assert {"twin:hand-pump", "twin:shaper-quick-return",
             "scenarios/slider-driven-slider-crank.toml", "tests/planar_scenes.py:slider-driven"} <= set(SHIPPED)
     assert len(SHIPPED) >= 10
 

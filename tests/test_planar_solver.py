@@ -34,6 +34,7 @@ import mechval.planar_positions as positions
 from mechval.planar_solver import MechanismError, PlanarSolver, raw_planar
 from mechval.reference import raw_reference
 from scales import motion_scales, size
+from twins import twin
 
 #: What "agrees" means for the general reference, as a fraction of each
 #: quantity's scale (angles: absolute, rad).
@@ -120,7 +121,9 @@ def test_the_assembly_pose_picks_the_branch():
     """The seed four-bar's joints close on two branches; a pose near the
     crossed one gives the crossed closed form, not the open one."""
     seed = builtin_scenario("fourbar-seed")
-    crossed = dataclasses.replace(seed, geometry={**seed.geometry, "branch": "crossed"})
+    closed = seed.closed_form
+    crossed = dataclasses.replace(seed, closed_form=dataclasses.replace(
+        closed, geometry=dataclasses.replace(closed.geometry, branch="crossed")))
     open_mech, crossed_mech = build_mechanism(seed), build_mechanism(crossed)
     assert open_mech.joints == crossed_mech.joints
     t = seed.time.t
@@ -532,5 +535,5 @@ def test_a_run_too_long_to_follow_is_refused_naming_time_end(monkeypatch):
 def test_the_longest_planar_built_in_stays_within_the_step_limit(monkeypatch):
     """The 509-revolution twin is followed within two thirds of the limit."""
     monkeypatch.setattr(positions, "MAX_STEPS", positions.MAX_STEPS * 2 // 3)
-    scenario = builtin_scenario("planar-twins/fourbar-long-run")
+    scenario = twin("fourbar-long-run")
     assert PlanarSolver(build_mechanism(scenario)).solve(scenario.time.t).facts["continuation_nodes"] > 10_000

@@ -10,6 +10,7 @@ from mechval.engines.registry import ENGINE_NAMES
 from mechval.scenario import ScenarioError
 from mechval.scenarios import load, parse
 from scenario_data import fourbar, slider_crank
+from twins import twin_document
 
 
 @pytest.mark.parametrize("name", BUILTIN)
@@ -21,10 +22,11 @@ def test_builtin_loads(name):
 
 def test_defaults_for_omitted_tables():
     scenario = parse(fourbar(effects=None), "defaults")
-    assert scenario.gravity is None and scenario.damping == {}
+    scene = scenario.scene
+    assert scene.gravity == (0.0, 0.0) and all(j.damping == 0.0 for j in scene.joints) and not scene.forces
     assert scenario.tolerance["angle"] == 1e-3 and scenario.tolerance["force"] == 1e-2
-    rocker = scenario.mass["rocker"]
-    assert rocker.com == pytest.approx(0.25) and rocker.izz == pytest.approx(25.0 * 0.5**2 / 12)
+    rocker = next(b for b in scene.bodies if b.name == "rocker")
+    assert rocker.com == pytest.approx((0.25, 0.0)) and rocker.izz == pytest.approx(25.0 * 0.5**2 / 12)
 
 
 def test_engine_tolerance_override():
@@ -138,3 +140,29 @@ def test_unreadable_file(tmp_path):
         load(path)
     with pytest.raises(ScenarioError, match="no such scenario"):
         load(tmp_path / "absent.toml")
+
+
+# -- one parser of the tables both formats share (issue 24) --------------------------------------
+
+LONG_TEXT = "x" * 3000
+
+
+@pytest.mark.parametrize("key, edit, shown", [
+    ("time.samples", lambda doc: doc["time"].update(samples=LONG_TEXT), "'xxxxxxxxxxxx"),
+    ("time.samples", lambda doc: doc["time"].update(samples=-10**3999), "-~1e3999"),
+    ("time.samples", lambda doc: doc["time"].update(samples=1), "must be at least 2, got 1"),
+    ("tags", lambda doc: doc.update(tags=[LONG_TEXT, 1]), "expected a list of strings"),
+])
+def test_both_formats_refuse_shared_tables_alike(key, edit, shown):
+    """A 3,000-character `samples` was quoted in ~100 characters by one
+    format and 2,000 by the other, a 4,000-digit one as -~1e3999 by one and
+    in full by the other: both now read the shared tables with one parser,
+    so the refusal is the same, one short line."""
+    reasons = []
+    for doc in (fourbar(), twin_document("fourbar-seed")):
+        edit(doc)
+        with pytest.raises(ScenarioError) as refused:
+            parse(doc, "scene.toml")
+        assert refused.value.key == key
+        reasons.append(refused.value.reason)
+    assert reasons[0] == reasons[1] and shown in reasons[0] and len(reasons[0]) < 120, reasons

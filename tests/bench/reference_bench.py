@@ -38,18 +38,17 @@ def main() -> None:
     t = np.linspace(0.0, scenario.time.end, args.instants)
     vectorised, = best_times(args.repeats, timed(lambda: raw_reference(mech, t)))
 
-    geometry = scenario.geometry
+    closed = scenario.closed_form
+    geometry = closed.geometry
     m = {b.name: b for b in mech.bodies}
     t_loop = np.linspace(0.0, scenario.time.end, args.loop_instants)
 
     def loop():
-        from mechval.fourbar import FourBarGeometry
-        g = FourBarGeometry(**scenario.geometry)
         for tk in t_loop:
-            k = {name: float(v[0]) for name, v in kinematics(g, scenario.drive, np.array([tk])).items()}
+            k = {name: float(v[0]) for name, v in kinematics(geometry, closed.law, np.array([tk])).items()}
             A, rhs = norton_system(k, m["crank"].mass, m["coupler"].mass, m["rocker"].mass, m["crank"].izz,
-                                   m["coupler"].izz, m["rocker"].izz, mech.gravity, geometry["crank"],
-                                   geometry["coupler"], geometry["rocker"], geometry["ground"])
+                                   m["coupler"].izz, m["rocker"].izz, mech.gravity, geometry.crank,
+                                   geometry.coupler, geometry.rocker, geometry.ground)
             np.linalg.solve(A, rhs)
 
     per_instant = timed(loop)() / args.loop_instants

@@ -23,7 +23,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
-from mechval.adapter import EngineAdapter, PeakRates, ResolvedSettings, mechanism_features
+from mechval.adapter import EngineAdapter, PeakRates, ResolvedSettings, Unrepresentable, mechanism_features
 from mechval.engines.base import peak_rates
 from mechval.engines.registry import adapter
 from mechval.linkages import build_mechanism
@@ -49,8 +49,12 @@ class Plan:
         be derived is a ScenarioError naming the file and key)."""
         adapters = [adapter(e) if isinstance(e, str) else e for e in engines]
         rates = self.rates
-        if rates is None and any(a.uses_peak_rates for a in adapters):
-            rates = peak_rates(self.mechanism, self.scenario.time.t)
+        readers = [a for a in adapters if a.uses_peak_rates]
+        if rates is None and readers:
+            try:
+                rates = peak_rates(self.mechanism, self.scenario.time.t)
+            except Unrepresentable as exc:      # as the first engine's own default step would be refused
+                raise ScenarioError(self.scenario.source, exc.key, f"{readers[0].name}: {exc.reason}") from None
         defaults = dict(self.defaults)
         for engine_adapter in adapters:
             if engine_adapter.name not in defaults:

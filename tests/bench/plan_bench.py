@@ -90,8 +90,8 @@ def python(tree: Path, code: str) -> tuple[str, float, float]:
                           capture_output=True, text=True, cwd=tempfile.gettempdir())
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if done.returncode not in (0, 1):
-        raise SystemExit(f"failed ({done.returncode}): {done.stderr[-2000:]}")
+    if done.returncode not in (0, 1) or "Traceback" in done.stderr:     # 1: a run whose comparison failed
+        raise SystemExit(f"failed ({done.returncode}) on {tree}: {done.stderr[-2000:]}")
     return done.stdout, wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
@@ -112,6 +112,8 @@ def main() -> None:
     parser.add_argument("--skip-run", action="store_true", help="leave out `mechval run` (the longest part)")
     args = parser.parse_args()
     tree = args.tree.resolve()
+    if not (tree / "core" / "__init__.py").is_file():
+        raise SystemExit(f"{tree}: not a checkout of mechval")
     commit = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True).stdout.strip()
     print(f"mechval of {tree} (commit {commit}); load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")

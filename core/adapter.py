@@ -60,6 +60,34 @@ RUN_INFO_FIELDS = ("build_time_s", "wall_time_s", "steps", "warnings")
 
 
 @dataclass(frozen=True)
+class PeakRates:
+    """The reference motion of a run on the step rule's dense grid `t`
+    (`mechval.kinematics.STEP_RULE_GRID` instants; a torque-driven or free
+    mechanism's integrated by the forward-dynamics reference), and its Ω
+    (`mechval.kinematics.peak_rate`): what default steps and force scales
+    are made of. The harness computes it once per scene
+    (`mechval.harness.plan`) and hands it to every adapter that declares
+    `uses_peak_rates` (`mechval.engines.base.peak_rates` computes it)."""
+
+    t: np.ndarray
+    motion: pd.DataFrame
+    rate: float
+
+
+#: Where a resolved setting came from: the adapter's derived default, the
+#: scenario file's [engines.NAME] table, or an explicit override.
+ORIGINS = ("default", "file", "override")
+
+
+@dataclass(frozen=True)
+class ResolvedSettings:
+    """An engine's settings for one scene, each with its origin (ORIGINS)."""
+
+    values: Mapping[str, Any]
+    origins: Mapping[str, str]
+
+
+@dataclass(frozen=True)
 class RawRun:
     """An adapter's output: raw columns at the requested instants, the
     reason for every column with missing values, and the run's facts."""
@@ -142,6 +170,12 @@ class EngineAdapter(ABC):
     #: (feature → reason, measured): the refusal then says so rather than
     #: that the adapter does not build it yet.
     feature_limits: ClassVar[Mapping[str, str]] = {}
+    #: Whether `default_settings` takes the prepared scene's `PeakRates` as
+    #: a keyword `rates` (computing them itself when it is None): the
+    #: harness then computes them once per scene for every engine of a run.
+    #: False (a plug-in's default): called as `default_settings(mechanism,
+    #: times)`.
+    uses_peak_rates: ClassVar[bool] = False
 
     @classmethod
     def unavailable_reason(cls) -> str:
@@ -163,20 +197,46 @@ class EngineAdapter(ABC):
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         """Simulate and return raw columns at `times` (see module docstring)."""
 
-    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
-                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        """Derived defaults, then the scenario's [engines.NAME] table, then
-        explicit overrides. An unknown key, a value `settings_spec` refuses
-        (type, range, choices), or a step that does not divide the sample
-        interval is refused with the file and key, before any run. So is a
-        scene whose defaults cannot be derived (Unrepresentable: the step
-        rule of a torque-driven or free scene integrates its motion, which
-        may leave float64's range): every command resolves settings here
-        first, so none of them lets that refusal escape as a traceback."""
+    def check_settings(self, mechanism: Mechanism, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+        """(key, reason) for each resolved setting this mechanism cannot
+        take, beyond what `settings_spec` checks (e.g. a pre-roll asked of a
+        run that starts at its first instant); none by default. The harness
+        refuses the first with the setting's origin (file or override)."""
+        return []
+
+    def defaults_for(self, scenario: Scenario, mechanism: Mechanism,
+                     rates: PeakRates | None = None) -> dict[str, Any]:
+        """`default_settings` of the scene (given its peak rates when this
+        adapter takes them, `uses_peak_rates`). A scene whose defaults
+        cannot be derived (Unrepresentable: the step rule of a torque-driven
+        or free scene integrates its motion, which may leave float64's
+        range) is refused as a ScenarioError naming the file and key."""
         try:
-            settings = self.default_settings(mechanism, scenario.time.t)
+            if self.uses_peak_rates and rates is not None:
+                return self.default_settings(mechanism, scenario.time.t, rates=rates)
+            return self.default_settings(mechanism, scenario.time.t)
         except Unrepresentable as exc:
             raise ScenarioError(scenario.source, exc.key, f"{self.name}: {exc.reason}") from None
+
+    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
+                     overrides: Mapping[str, Any] | None = None, rates: PeakRates | None = None,
+                     defaults: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """The values of `resolve_settings` (same arguments)."""
+        return dict(self.resolve_settings(scenario, mechanism, overrides, rates, defaults).values)
+
+    def resolve_settings(self, scenario: Scenario, mechanism: Mechanism,
+                         overrides: Mapping[str, Any] | None = None, rates: PeakRates | None = None,
+                         defaults: Mapping[str, Any] | None = None) -> ResolvedSettings:
+        """Derived defaults (`defaults`, else `defaults_for` with `rates`),
+        then the scenario's [engines.NAME] table, then explicit overrides,
+        each value with its origin. An unknown key, a value `settings_spec`
+        refuses (type, range, choices), a step that does not divide the
+        sample interval, or a setting `check_settings` refuses is refused
+        with the file (or "settings override") and key, before any run:
+        every command resolves settings here first, so none of them lets
+        such a refusal escape as a traceback."""
+        settings = dict(defaults if defaults is not None else self.defaults_for(scenario, mechanism, rates))
+        origins = dict.fromkeys(settings, "default")
         for origin, table in (("file", scenario.settings_for(self.name)), ("override", overrides or {})):
             source = scenario.source if origin == "file" else "settings override"
             for key, value in table.items():
@@ -196,8 +256,11 @@ class EngineAdapter(ABC):
                     if steps > MAX_STEPS_PER_SAMPLE:
                         raise fail(f"{value!r} s makes {steps:.3g} steps per sample interval ({interval:.6g} s), "
                                    f"more than {MAX_STEPS_PER_SAMPLE:.0e}")
-                settings[key] = value
-        return settings
+                settings[key], origins[key] = value, origin
+        for key, reason in self.check_settings(mechanism, settings):
+            source = "settings override" if origins.get(key) == "override" else scenario.source
+            raise ScenarioError(source, f"engines.{self.name}.{key}", reason)
+        return ResolvedSettings(settings, origins)
 
     def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
         """(steps per sample interval, steps before t = 0) a run with these

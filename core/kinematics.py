@@ -162,24 +162,34 @@ def joint_gaps(mechanism: Mechanism, motion: Mapping) -> np.ndarray:
     return np.max([joint_gap(motion, joint) for joint in mechanism.joints], axis=0)
 
 
-def step_rate(mechanism: Mechanism, times: np.ndarray, dense: int = 20001) -> float:
+#: Instants of the step rule's dense grid over a run (`step_rate`).
+STEP_RULE_GRID = 20001
+
+
+def step_rate(mechanism: Mechanism, times: np.ndarray, dense: int = STEP_RULE_GRID) -> float:
     """Ω: the largest over the run and the links of |ω|, √|α| and ∛|jerk|
-    (rad/s), from the reference kinematics on a dense grid.
+    (rad/s), from the reference kinematics on a dense grid of the run.
 
     Speed alone misjudges sharp motion at moderate speed (near the Grashof
     change point), hence the α and jerk terms (docs/engines.md, "step rule").
-    Computed once per mechanism (`Mechanism.derive`).
+    Each call solves the reference on that grid: the harness asks once per
+    scene (`mechval.harness.plan`) and hands the result to every engine.
     """
-    t0, t1 = float(times[0]), float(times[-1])
-    return mechanism.derive(("step_rate", t0, t1, dense), lambda: _step_rate(mechanism, np.linspace(t0, t1, dense)))
+    t = dense_grid(times, dense)
+    return peak_rate(mechanism, mechanism.motion(t), t)
 
 
-def _step_rate(mechanism: Mechanism, t: np.ndarray) -> float:
-    motion = mechanism.motion(t)
+def dense_grid(times: np.ndarray, dense: int = STEP_RULE_GRID) -> np.ndarray:
+    """`dense` instants evenly spread from the run's first to its last."""
+    return np.linspace(float(times[0]), float(times[-1]), dense)
+
+
+def peak_rate(mechanism: Mechanism, motion: Mapping, t: np.ndarray) -> float:
+    """Ω of `step_rate` from the motion at the instants t."""
     rate = 0.0
     for body in mechanism.bodies:
-        w = motion[f"{body.name}.omega"].to_numpy()
-        al = motion[f"{body.name}.alpha"].to_numpy()
+        w = np.asarray(motion[f"{body.name}.omega"], dtype=float)
+        al = np.asarray(motion[f"{body.name}.alpha"], dtype=float)
         jerk = np.gradient(al, t)
         rate = max(rate, np.abs(w).max(), np.sqrt(np.abs(al).max()), np.cbrt(np.abs(jerk).max()))
     return float(rate)

@@ -15,7 +15,6 @@ joints, drives and forces are the scene's.
 from __future__ import annotations
 
 import dataclasses
-from collections import OrderedDict
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Callable, Mapping
@@ -82,27 +81,10 @@ class ClosedForm:
         self.module.check_closure(self.geometry, self.law, t, source, key=key)
 
 
-#: The mechanisms of the last scenarios built, by the scenario's identity
-#: (a Scenario holds dicts, so it has no hash; the entry keeps it alive, so
-#: its id is not reused while it is here). Planning, the limits check and
-#: the model audit of one run all ask for the same scenario's mechanism,
-#: and what is derived from it (`Mechanism.derived`) is then computed once.
-_BUILT: OrderedDict[int, tuple[Scenario, Mechanism]] = OrderedDict()
-_BUILT_KEPT = 64
-
-
 def build_mechanism(scenario: Scenario) -> Mechanism:
-    """The generic `Mechanism` of a validated scenario, from its scene;
-    the same object for the same scenario object while it is among the
-    last built."""
-    kept = _BUILT.get(id(scenario))
-    if kept is not None and kept[0] is scenario:
-        _BUILT.move_to_end(id(scenario))
-        return kept[1]
+    """The generic `Mechanism` of a validated scenario, from its scene. The
+    harness builds each scene's once per run (`mechval.harness.plan`)."""
     mechanism = _built(scenario)
-    _BUILT[id(scenario)] = (scenario, mechanism)
-    if len(_BUILT) > _BUILT_KEPT:
-        _BUILT.popitem(last=False)
     return mechanism
 
 

@@ -205,17 +205,6 @@ class Mechanism:
     #: Where a torque-driven or free run starts: one joint value per degree
     #: of freedom the drives leave.
     initial_values: tuple[InitialValue, ...] = ()
-    #: Quantities derived from this mechanism alone, kept once computed
-    #: (`derive`): the step rate and the like, each a dense solve of a
-    #: planar file, asked for by planning, the limits check and the audit.
-    derived: dict = field(default_factory=dict, init=False, repr=False, compare=False)
-
-    def derive(self, key: tuple, compute: Callable[[], float]) -> float:
-        """`compute()` once per key for this mechanism, kept in `derived`."""
-        if key not in self.derived:
-            self.derived[key] = compute()
-        return self.derived[key]
-
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
 

@@ -24,6 +24,10 @@ class Task:
     #: A regression check's recorded settings and reference reads, fed to
     #: the engine instead of being derived anew (`mechval.engine_inputs`).
     feed: Feed | None = None
+    #: The engine's settings, resolved once when the run was planned
+    #: (`mechval.harness.plan`): the worker runs with them and derives
+    #: nothing (None: derived by the worker).
+    settings: Mapping[str, Any] | None = None
 
     @property
     def label(self) -> str:

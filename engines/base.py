@@ -16,10 +16,10 @@ import numpy as np
 import pandas as pd
 
 from mechval import engine_inputs
-from mechval.adapter import (MAX_STEPS_PER_SAMPLE, EngineAdapter, RawRun, RunInfo,  # noqa: F401 (re-exported)
-                             Unrepresentable)
+from mechval.adapter import (MAX_STEPS_PER_SAMPLE, EngineAdapter, PeakRates, RawRun,  # noqa: F401 (re-exported)
+                             RunInfo, Unrepresentable)
 from mechval.dynamics import RTOL, raw_dynamics
-from mechval.kinematics import step_rate
+from mechval.kinematics import dense_grid, peak_rate
 from mechval.mechanism import Mechanism
 from mechval.planar_constraints import MechanismError
 
@@ -76,30 +76,33 @@ def reference_motion(mechanism: Mechanism, t: np.ndarray, rtol: float = RTOL) ->
 
 def planned_motion(mechanism: Mechanism) -> Mechanism:
     """The mechanism whose `motion` is what only needs its peak rates and
-    forces (the step rule, force scales): a prescribed motion as it is; a
-    torque-driven or free one integrated by the forward-dynamics reference
-    at RATE_RTOL, each grid once."""
+    forces (the step rule, force scales, the audit's speed clamp): a
+    prescribed motion as it is; a torque-driven or free one integrated by
+    the forward-dynamics reference at RATE_RTOL. Each call of its `motion`
+    solves anew: the harness asks for the step rule's grid once per scene
+    (`peak_rates`)."""
     if not mechanism.forward_dynamics:
         return mechanism
-    frames: dict[tuple[float, float, int], pd.DataFrame] = {}
+    return dataclasses.replace(
+        mechanism, motion=lambda t: reference_motion(mechanism, np.asarray(t, dtype=float), RATE_RTOL))
 
-    def motion(t: np.ndarray) -> pd.DataFrame:
-        t = np.asarray(t, dtype=float)
-        key = (float(t[0]), float(t[-1]), len(t))
-        if key not in frames:
-            frames[key] = reference_motion(mechanism, t, RATE_RTOL)
-        return frames[key]
 
-    # One planned mechanism per mechanism, so that every engine's settings,
-    # limits check and audit of one run read one integration per grid and
-    # one step rate (`Mechanism.derive`), not one each.
-    return mechanism.derive(("planned_motion",), lambda: dataclasses.replace(mechanism, motion=motion))
+def peak_rates(mechanism: Mechanism, times: np.ndarray) -> PeakRates:
+    """The planned motion on the step rule's dense grid over the run, and
+    its Ω (`mechval.kinematics.step_rate`): one solve, which the harness
+    does once per scene and hands to every adapter (`uses_peak_rates`)."""
+    t = dense_grid(times)
+    motion = planned_motion(mechanism).motion(t)
+    return PeakRates(t, motion, peak_rate(mechanism, motion, t))
 
 
 def default_step(mechanism: Mechanism, times: np.ndarray, rad_per_step: float = 0.01,
-                 max_step: float = 1e-3) -> float:
+                 max_step: float = 1e-3, rate: float | None = None) -> float:
     """dt = rad_per_step / Ω, at most max_step, rounded down so that every
-    sample interval holds a whole number of steps."""
+    sample interval holds a whole number of steps. Ω is `rate` when given
+    (the prepared scene's `PeakRates.rate`), else solved here
+    (`peak_rates`)."""
     interval = float(times[1] - times[0])
-    dt = min(rad_per_step / max(step_rate(mechanism, times), 1e-12), max_step, interval)
+    rate = peak_rates(mechanism, times).rate if rate is None else rate
+    dt = min(rad_per_step / max(rate, 1e-12), max_step, interval)
     return interval / int(np.ceil(interval / dt - 1e-9))

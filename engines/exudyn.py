@@ -48,12 +48,12 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, as_float, steps_per_interval
+from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
+from mechval.kinematics import dense_grid
 from mechval.mechanism import Mechanism
-from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
-from .base import EngineAdapter, RawRun, RunInfo, default_step, planned_motion
+from .base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
 from .exudyn_audit import audit_model
 from .exudyn_model import solve
 from .exudyn_run import force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
@@ -71,9 +71,9 @@ NEWTON_TOLERANCE_PER_NEWTON = 1e-13
 #: grows as 1/rad_per_step.
 RAD_PER_STEP = 0.007
 #: Instants of the force estimate over the run; a torque-driven or free
-#: mechanism's uses the step rule's grid (`step_rate`), so that its motion
-#: is integrated once (`planned_motion`).
-FORCE_SCALE_GRID, STEP_RULE_GRID = 2001, 20001
+#: mechanism's uses the step rule's grid and motion (`PeakRates`), so that
+#: its motion is integrated once.
+FORCE_SCALE_GRID = 2001
 
 
 def own_start(mechanism: Mechanism) -> bool:
@@ -96,7 +96,7 @@ class ExudynAdapter(EngineAdapter):
         "timestep": TIMESTEP,
         # At least one for prescribed motion (t = 0 must be a solved step),
         # 0 for a torque-driven or free mechanism, which starts at its
-        # first instant (`settings_for`, `prepare`).
+        # first instant (`check_settings`, `prepare`).
         "pre_roll_steps": Number(0, 100_000, whole=True),
         # Index-3 needs ρ < 1 (`index3_transient_steps`).
         "spectral_radius": Number(0.0, 1.0, high_open=True),
@@ -131,7 +131,10 @@ class ExudynAdapter(EngineAdapter):
             pre_roll = max(pre_roll, index3_transient_steps(rho))
         return steps_per_interval(times, as_float(settings["timestep"])), pre_roll
 
-    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+    uses_peak_rates = True
+
+    def default_settings(self, mechanism: Mechanism, times: np.ndarray,
+                         rates: PeakRates | None = None) -> dict[str, Any]:
         """Step from the scenario's motion (`default_step`); each deliberate
         deviation from Exudyn's defaults is a named setting:
 
@@ -154,37 +157,36 @@ class ExudynAdapter(EngineAdapter):
         starts at its first instant: no pre-roll, and Exudyn's own
         initial-acceleration solve (`own_start`) gives the reactions there;
         its step rule and force scale read the forward-dynamics reference
-        (`planned_motion`).
+        (`rates`: the prepared scene's, else computed here).
         """
-        scene = planned_motion(mechanism)
+        rates = peak_rates(mechanism, times) if rates is None else rates
+        if mechanism.forward_dynamics:
+            scale = force_scale(mechanism, rates.motion, rates.t)
+        else:
+            t = dense_grid(times, FORCE_SCALE_GRID)
+            scale = force_scale(mechanism, mechanism.motion(t), t)
         return {
             "solver": "index2",
-            "timestep": default_step(scene, times, rad_per_step=RAD_PER_STEP),
+            "timestep": default_step(mechanism, times, rad_per_step=RAD_PER_STEP, rate=rates.rate),
             "pre_roll_steps": 0 if mechanism.forward_dynamics else 10,
             "spectral_radius": 0.9,
             "compute_initial_accelerations": own_start(mechanism),
             "full_newton": True,
             "newton_relative_tolerance": 1e-12,
-            "newton_absolute_tolerance": NEWTON_TOLERANCE_PER_NEWTON * force_scale(
-                scene, times, STEP_RULE_GRID if mechanism.forward_dynamics else FORCE_SCALE_GRID),
+            "newton_absolute_tolerance": NEWTON_TOLERANCE_PER_NEWTON * scale,
             "adaptive_step": False,
         }
 
-    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
-                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        """As every adapter's, and a pre-roll that does not fit the motion
-        is refused with the file (or override) and key: at least one step
-        for prescribed motion (Exudyn reports zero reactions at its first
+    def check_settings(self, mechanism: Mechanism, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+        """A pre-roll that does not fit the motion: at least one step for
+        prescribed motion (Exudyn reports zero reactions at its first
         instant), none for a torque-driven or free mechanism (its motion is
         known only from its first instant on)."""
-        settings = super().settings_for(scenario, mechanism, overrides)
         if (settings["pre_roll_steps"] == 0) != mechanism.forward_dynamics:
-            source = "settings override" if "pre_roll_steps" in (overrides or {}) else scenario.source
-            reason = ("must be 0 for a torque-driven or free mechanism: it starts at its first instant"
-                      if mechanism.forward_dynamics else
-                      "must be at least 1: Exudyn reports zero reactions at its first instant")
-            raise ScenarioError(source, f"engines.{self.name}.pre_roll_steps", reason)
-        return settings
+            return [("pre_roll_steps", "must be 0 for a torque-driven or free mechanism: it starts at its first instant"
+                     if mechanism.forward_dynamics else
+                     "must be at least 1: Exudyn reports zero reactions at its first instant")]
+        return []
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         return audit_model(mechanism, times, settings)

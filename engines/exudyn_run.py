@@ -141,19 +141,12 @@ def index3_transient_steps(spectral_radius: float) -> int:
     return int(np.ceil(np.log(INDEX3_TRANSIENT_DECAY) / np.log(spectral_radius)))
 
 
-def force_scale(mechanism: Mechanism, times: np.ndarray, dense: int = 2001) -> float:
-    """Peak over the run of Σ m·|a_G − g|·max(1, r/1 m) (N), r the largest
-    distance from the body's centre of mass to its joints: the size of the
-    forces the Newton residual is made of and of their moments about the
-    centres of mass (N·m: arms beyond a metre make those the larger rows);
-    computed once per mechanism."""
-    t0, t1 = float(times[0]), float(times[-1])
-    return mechanism.derive(("exudyn.force_scale", t0, t1, dense),
-                            lambda: _force_scale(mechanism, np.linspace(t0, t1, dense)))
-
-
-def _force_scale(mechanism: Mechanism, t: np.ndarray) -> float:
-    motion = mechanism.motion(t)
+def force_scale(mechanism: Mechanism, motion: Mapping, t: np.ndarray) -> float:
+    """Peak over the instants t of Σ m·|a_G − g|·max(1, r/1 m) (N), r the
+    largest distance from the body's centre of mass to its joints, from the
+    reference motion at t: the size of the forces the Newton residual is
+    made of and of their moments about the centres of mass (N·m: arms
+    beyond a metre make those the larger rows)."""
     total = np.zeros_like(t)
     for body in mechanism.bodies:
         g = point_motion(motion, body.name, body.com)

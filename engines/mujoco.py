@@ -33,7 +33,7 @@ Modes (setting "mode"):
   but runs Python four times per step, process-wide, and rules out the
   rollout. The column "NAME.T" is the actuator's force read back at the
   sample. The default step takes Ω from the forward-dynamics reference at
-  rtol 1e-6 (`planned_motion`): the mechanism's own `motion` describes
+  rtol 1e-6 (`PeakRates`, `planned_motion`): the mechanism's own `motion` describes
   no run there.
 - "inverse": `mj_inverse` at the reference q, q̇, q̈ with constraints off;
   qfrc_inverse is split by least squares into the drive torque on its
@@ -97,10 +97,9 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, as_float, ceil_or_inf, steps_per_interval
-from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, planned_motion
+from mechval.adapter import FEATURES, PeakRates, as_float, ceil_or_inf, steps_per_interval
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
 from mechval.mechanism import Mechanism
-from mechval.scenario import Scenario, ScenarioError
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from .mujoco_audit import audit_model
@@ -159,7 +158,10 @@ class MujocoAdapter(EngineAdapter):
         preroll = ceil_or_inf(as_float(settings["preroll_timeconsts"]) * as_float(settings["solref_steps"]))
         return steps_per_interval(times, step), preroll
 
-    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+    uses_peak_rates = True
+
+    def default_settings(self, mechanism: Mechanism, times: np.ndarray,
+                         rates: PeakRates | None = None) -> dict[str, Any]:
         """RK4 at the shared step rule (`timestep`: 0.01 rad per step of the
         fastest motion, ≤ 1 ms), divided by `refine` (the step MuJoCo takes,
         dt; 1 by default); the loop's solref 10·dt, below which RK4 has an
@@ -171,11 +173,13 @@ class MujocoAdapter(EngineAdapter):
         clock by < 1e-9 rad over a run. The pre-roll lasts 20 solref time
         constants: the rigidly consistent start is not the soft constraints'
         equilibrium, and that transient (critically damped) must have died
-        out by t = 0 (4 time constants left visible errors in α2 and T12)."""
+        out by t = 0 (4 time constants left visible errors in α2 and T12).
+        Ω is the prepared scene's (`rates`), else computed here."""
+        rate = (peak_rates(mechanism, times) if rates is None else rates).rate
         return {
             "mode": "forward",
             "integrator": "RK4",
-            "timestep": default_step(planned_motion(mechanism), times),
+            "timestep": default_step(mechanism, times, rate=rate),
             "refine": 1,
             "solref_steps": 10.0,
             "drive_solref_steps": 1.0,
@@ -188,20 +192,14 @@ class MujocoAdapter(EngineAdapter):
             "preroll_timeconsts": 0.0 if mechanism.forward_dynamics else 20.0,
         }
 
-    def settings_for(self, scenario: Scenario, mechanism: Mechanism,
-                     overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        """As every adapter's; a pre-roll asked of a torque-driven or free run
-        is refused with its origin and key: such a run starts at the first
-        instant from its initial state (`planned_steps` counts none)."""
-        settings = super().settings_for(scenario, mechanism, overrides)
+    def check_settings(self, mechanism: Mechanism, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+        """A pre-roll asked of a torque-driven or free run: such a run starts
+        at the first instant from its initial state (`planned_steps` counts
+        none)."""
         if mechanism.forward_dynamics and settings["preroll_timeconsts"]:
-            in_file = "preroll_timeconsts" in scenario.settings_for(self.name)
-            in_override = "preroll_timeconsts" in (overrides or {})
-            raise ScenarioError(scenario.source if in_file and not in_override else "settings override",
-                                f"engines.{self.name}.preroll_timeconsts",
-                                "a torque-driven or free run starts at the first instant from its initial state, "
-                                "with no pre-roll: leave it out or set 0")
-        return settings
+            return [("preroll_timeconsts", "a torque-driven or free run starts at the first instant from its initial "
+                                           "state, with no pre-roll: leave it out or set 0")]
+        return []
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         return audit_model(mechanism, times, settings)

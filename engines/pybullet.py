@@ -55,7 +55,7 @@ from mechval.adapter import FEATURES, as_float, steps_per_interval
 from mechval.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
-from .base import EngineAdapter, RawRun, default_step, planned_motion
+from .base import EngineAdapter, PeakRates, RawRun, default_step, peak_rates
 from .pybullet_audit import audit_model
 from .pybullet_run import run_model
 
@@ -90,12 +90,20 @@ class PybulletAdapter(EngineAdapter):
     def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
         return steps_per_interval(times, as_float(settings["timestep"])), as_float(settings["preroll_steps"])
 
-    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+    uses_peak_rates = True
+
+    def default_settings(self, mechanism: Mechanism, times: np.ndarray,
+                         rates: PeakRates | None = None) -> dict[str, Any]:
+        """The step rule at RAD_PER_STEP (FREE_RAD_PER_STEP for a
+        torque-driven or free run, which starts at its first instant with
+        no pre-roll); Ω is the prepared scene's (`rates`), else computed
+        here."""
+        rate = (peak_rates(mechanism, times) if rates is None else rates).rate
         if mechanism.forward_dynamics:
-            return {"timestep": default_step(planned_motion(mechanism), times, rad_per_step=FREE_RAD_PER_STEP),
+            return {"timestep": default_step(mechanism, times, rad_per_step=FREE_RAD_PER_STEP, rate=rate),
                     "preroll_steps": 0, "layout": "split"}
         return {
-            "timestep": default_step(mechanism, times, rad_per_step=RAD_PER_STEP),
+            "timestep": default_step(mechanism, times, rad_per_step=RAD_PER_STEP, rate=rate),
             "preroll_steps": PREROLL_STEPS,
             "layout": "split",
         }

@@ -10,17 +10,20 @@ from typing import Any, Iterable, Mapping
 
 from mechval.audit import AuditResult
 from mechval.engines.registry import adapter
-from mechval.linkages import build_mechanism
 from mechval.scenario import Scenario
 
+from .plan import Plan, planned
 
-def audit_scenario(scenario: Scenario, engine: str, overrides: Mapping[str, Any] | None = None) -> AuditResult:
-    """The audit of `engine`'s model of `scenario` at its default setting
-    (plus overrides). Settings the scenario refuses raise ScenarioError; a
-    scenario the engine cannot model gives a result with the error."""
+
+def audit_scenario(scenario: Scenario | Plan, engine: str, overrides: Mapping[str, Any] | None = None) -> AuditResult:
+    """The audit of `engine`'s model of `scenario` (or of its prepared
+    `Plan`) at its default setting (plus overrides). Settings the scenario
+    refuses raise ScenarioError; a scenario the engine cannot model gives a
+    result with the error."""
     engine_adapter = adapter(engine)
-    mechanism = build_mechanism(scenario)
-    settings = engine_adapter.settings_for(scenario, mechanism, overrides)
+    plan = planned(scenario, [engine_adapter])
+    scenario, mechanism = plan.scenario, plan.mechanism
+    settings = plan.settings(engine_adapter, overrides)
     start = time.perf_counter()
     try:
         table = engine_adapter.audit(mechanism, scenario.time.t, settings)
@@ -31,7 +34,9 @@ def audit_scenario(scenario: Scenario, engine: str, overrides: Mapping[str, Any]
     return AuditResult(scenario.name, engine, table, seconds=time.perf_counter() - start)
 
 
-def audit_all(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[AuditResult]:
-    """Every scenario × engine, in that order."""
+def audit_all(scenarios: Iterable[Scenario | Plan], engines: Iterable[str]) -> list[AuditResult]:
+    """Every scenario (or prepared plan) × engine, in that order; each
+    scene prepared once."""
     engines = list(engines)
-    return [audit_scenario(scenario, engine) for scenario in scenarios for engine in engines]
+    plans = (planned(scenario, engines) for scenario in scenarios)
+    return [audit_scenario(plan, engine) for plan in plans for engine in engines]

@@ -14,8 +14,7 @@ from typing import Any, Mapping
 import pandas as pd
 
 from mechval.engine_inputs import Feed, InputsNotRecorded
-from mechval.engines.registry import adapter, adapter_class
-from mechval.linkages import build_mechanism
+from mechval.engines.registry import adapter_class
 from mechval.outcome import Outcome, Task
 from mechval.reports.build import provenance
 from mechval.scenario import ScenarioError
@@ -23,6 +22,7 @@ from mechval.scenarios import builtin_path
 from mechval.signals import Signals
 
 from . import baseline as bl
+from .plan import prepare
 from .runner import references_for, run_tasks, simulate_task, tasks_for
 from .simulate import simulate
 
@@ -263,7 +263,8 @@ def derived_now(task: Task) -> list[str]:
     the recorded ones."""
     if task.feed is None:
         return []
-    now = adapter(task.engine).settings_for(task.scenario, build_mechanism(task.scenario), task.overrides)
+    now = task.settings if task.settings is not None else prepare(task.scenario, [task.engine]).settings(
+        task.engine, task.overrides)
     notes = []
     for key in sorted(set(now) | set(task.feed.settings)):
         old, new = task.feed.settings.get(key, "(absent)"), now.get(key, "(absent)")

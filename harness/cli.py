@@ -29,7 +29,7 @@ from mechval.reports.stability import stability_section
 from mechval.outcome import Outcome
 from mechval.outputs import not_a_regular_file
 from mechval.scenario import Scenario, ScenarioError, one_line
-from mechval.scenarios import builtin_names, load
+from mechval.scenarios import builtin_names, builtin_path, load
 from mechval.scenarios.export import planar_file
 from mechval.signals import SIGNAL_CLASS, Signals
 
@@ -37,8 +37,10 @@ from .audit_run import audit_all, audit_scenario
 from .baseline import LinkInside, UnsafeName
 from .baseline_run import BaselinesExist, check_command, save_command
 from .cost import points_for, sweep
+from .plan import prepare
 from .executors import DASK_CONNECT_TIMEOUT, LocalExecutor, SchedulerUnreachable, dask_address_problem, executor_for
 from .interrupts import Interrupted, stop_on_signals
+from .listing import scenario_header
 from .runner import discrepancies, references_for, run_tasks, tasks_for
 from .simulate import simulate
 from .run_limits import DEFAULT_MAX_MEMORY, DEFAULT_MAX_STEPS, Limits, check_run
@@ -86,10 +88,11 @@ def _limits(args) -> Limits:
 
 
 def _check_runs(runs, limits: Limits) -> None:
-    """Refuse, before any work, every (scenario, engine, overrides) over the
-    step or memory limit (mechval.harness.run_limits.check_run)."""
-    for scenario, engine, overrides in runs:
-        check_run(scenario, engine, overrides, limits)
+    """Refuse, before any work, every (scenario, engine, settings) over the
+    step or memory limit (mechval.harness.run_limits.check_run); the
+    settings are those the run's plan resolved."""
+    for scenario, engine, settings in runs:
+        check_run(scenario, engine, limits=limits, settings=settings)
 
 
 def _check_writable(folder: Path, what: Path) -> None:
@@ -126,9 +129,12 @@ def _check_csv(csv: Path) -> None:
 
 
 def cmd_list(args) -> int:
+    """The built-in scenarios from their files' headers (name, kind, tags,
+    description), read without building or solving anything (a scene is
+    checked when it is loaded to run), and the engines found."""
     print("scenarios:")
     for name in builtin_names():
-        s = _load(name)
+        s = scenario_header(builtin_path(name))
         tags = f" [{', '.join(s.tags)}]" if s.tags else ""
         print(one_line(f"  {name:<28} {s.mechanism:<13}{tags} {s.description}"))
     print("engines:")
@@ -141,9 +147,11 @@ def cmd_list(args) -> int:
 def cmd_simulate(args) -> int:
     scenario = _load(args.scenario)
     _check_csv(args.csv)
-    _check_runs([(scenario, args.engine, None)], _limits(args))
+    plan = prepare(scenario, [args.engine])
+    settings = plan.settings(args.engine)
+    _check_runs([(scenario, args.engine, settings)], _limits(args))
     try:
-        signals = simulate(scenario, args.engine)
+        signals = simulate(plan, args.engine, settings=settings)
     except (ScenarioError, EngineUnavailable, UnknownEngine, KeyboardInterrupt):
         raise
     except Exception as exc:    # the engine's own failure (a solver that gives up): one line, exit 1
@@ -230,12 +238,13 @@ def cmd_cost(args) -> int:
         raise UsageError(f"--dask {args.dask!r}: not a Dask scheduler address: {problem}")
     scenarios = [_load(name) for name in args.scenarios]
     engines = _engines(args.engine)
-    _check_runs([(p.scenario, p.engine, p.overrides) for s in scenarios for e in engines
-                 for p in points_for(s, e, args.quick)], _limits(args))
+    plans = [prepare(s, engines) for s in scenarios]
+    _check_runs([(p.scenario, p.engine, p.settings) for plan in plans for e in engines
+                 for p in points_for(plan, e, args.quick)], _limits(args))
     out = args.out or default_out_dir("cost")
     _check_out_dir(out)
     executor = executor_for(args.dask, _workers(args), args.timeout, args.dask_connect_timeout)
-    table, orders, cheap = _cost_sweep(scenarios, engines, executor, args.quick, args.repeats, args.quiet)
+    table, orders, cheap = _cost_sweep(plans, engines, executor, args.quick, args.repeats, args.quiet)
     write_cost_report(out, table, orders, cheap)
     print(format_tables(table, orders, cheap))
     print(f"report: {out / 'index.html'}")
@@ -268,15 +277,16 @@ def run_and_report(args, phase: Callable[[str], ContextManager] = _untimed) -> R
         scenarios = _scenarios(args.scenarios, args.skip_hard, args.long)
         engines = _engines(args.engine)
     with phase("plan runs: settings, limits"):
-        tasks = tasks_for(scenarios, engines)
-        _check_runs([(t.scenario, t.engine, t.overrides) for t in tasks], _limits(args))
+        plans = [prepare(s, engines) for s in scenarios]       # each scene prepared once for every phase
+        tasks = tasks_for(plans, engines)
+        _check_runs([(t.scenario, t.engine, t.settings) for t in tasks], _limits(args))
         if args.cost:
-            _check_runs([(p.scenario, p.engine, p.overrides) for s in scenarios for e in engines
-                         for p in points_for(s, e)], _limits(args))
+            _check_runs([(p.scenario, p.engine, p.settings) for plan in plans for e in engines
+                         for p in points_for(plan, e)], _limits(args))
         out = args.out or default_out_dir()
         _check_out_dir(out)
     with phase("reference"):
-        references = references_for(scenarios)
+        references = references_for(plans)
     with phase("engine runs"), tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
                                     disable=args.quiet) as bar:
         def done(outcome):
@@ -292,11 +302,11 @@ def run_and_report(args, phase: Callable[[str], ContextManager] = _untimed) -> R
     with phase("report: stability, findings"):
         sections = [stability_section(records, scenarios), findings_section(measure_findings(engines))]
     with phase("report: model audit"):
-        sections.append(audit_section(audit_all(scenarios, engines)))
+        sections.append(audit_section(audit_all(plans, engines)))
     sections, files = [s for s in sections if s], None
     if args.cost:
         with phase("cost sweep"):
-            table, orders, cheap = _cost_sweep(scenarios, engines, LocalExecutor(_workers(args), args.timeout),
+            table, orders, cheap = _cost_sweep(plans, engines, LocalExecutor(_workers(args), args.timeout),
                                                quick=False, repeats=3, quiet=args.quiet)
             sections.append(cost_section(table, orders, cheap))
             files = {"cost.csv": lambda path: write_table(table, path)}
@@ -333,21 +343,23 @@ def parse_signal_rtol(items: list[str] | None) -> dict[str, float]:
 
 
 def cmd_baseline(args) -> int:
-    scenarios = _scenarios(args.scenarios, skip_hard=True)
     engines = _engines(args.engine)
-    _check_runs([(t.scenario, t.engine, t.overrides) for t in tasks_for(scenarios, engines)], _limits(args))
+    plans = [prepare(s, engines) for s in _scenarios(args.scenarios, skip_hard=True)]
+    _check_runs([(t.scenario, t.engine, t.settings) for t in tasks_for(plans, engines)], _limits(args))
     if args.action == "save":
         _check_writable(args.dir, args.dir)
-        return save_command(scenarios, engines, args.dir, args.force, _workers(args))
-    return check_command(scenarios, engines, args.dir, args.rtol, parse_signal_rtol(args.signal_rtol),
+        return save_command(plans, engines, args.dir, args.force, _workers(args))
+    return check_command(plans, engines, args.dir, args.rtol, parse_signal_rtol(args.signal_rtol),
                          _workers(args))
 
 
 def cmd_audit(args) -> int:
     scenario = _load(args.scenario)
+    engines = _engines(args.engine)
+    plan = prepare(scenario, engines)
     status = 0
-    for engine in _engines(args.engine):
-        result = audit_scenario(scenario, engine)
+    for engine in engines:
+        result = audit_scenario(plan, engine)
         verdict = result.error or (f"{result.failing} rows differ" if result.failing else "the model is the scene")
         print(f"== {scenario.name} × {engine}: {verdict}")
         if result.table is not None:

@@ -34,13 +34,13 @@ import pandas as pd
 
 from mechval.compare import compare
 from mechval.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE
+from mechval.engines.base import peak_rates
 from mechval.engines.registry import adapter
-from mechval.kinematics import step_rate
-from mechval.linkages import build_mechanism
 from mechval.scenario import Scenario, Tolerance, require_unique_names
 from mechval.signals import SIGNAL_CLASS, Signals
 
 from .executors import Done, Executor
+from .plan import Plan, planned, scenario_of
 from .simulate import simulate
 
 
@@ -56,6 +56,9 @@ class Point:
     step: float = float("nan")
     default: bool = False
     repeats: int = 3
+    #: Resolved when the sweep was planned (`mechval.harness.plan`), so that
+    #: the timed runs derive nothing (None: resolved in the worker).
+    settings: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -74,7 +77,7 @@ def measure_point(point: Point) -> Measurement:
     first, run_s, build_s, engine_s = None, [], [], []
     for _ in range(point.repeats):
         start = time.perf_counter()
-        signals = simulate(point.scenario, engine, point.overrides)
+        signals = simulate(point.scenario, engine, point.overrides, settings=point.settings)
         total = time.perf_counter() - start
         first = signals if first is None else first
         build = signals.info.build_time_s or 0.0
@@ -94,39 +97,49 @@ def nice_count(ratio: float) -> int:
         decade *= 10
 
 
-def points_for(scenario: Scenario, engine: str, quick: bool = False, repeats: int = 3) -> list[Point]:
-    """The sweep of one engine: its variants × its ladder and default step
-    (the adapter's step for the scenario, as interval / k). Quick: the
+def points_for(scene: Scenario | Plan, engine: str, quick: bool = False, repeats: int = 3) -> list[Point]:
+    """The sweep of one engine on a scenario (or its prepared plan): its
+    variants × its ladder and default step (the adapter's step for the
+    scenario, as interval / k), each with its resolved settings. Quick: the
     default variant at the default step and one ~10× coarser. An adapter
-    with no time step (`step_setting` empty) has one point: its defaults."""
+    with no time step (`step_setting` empty) has one point: its defaults.
+    The ladder's Ω is the plan's peak rates (`PeakRates.rate`)."""
     adapter_ = adapter(engine)
+    plan = planned(scene, [adapter_])
+    scenario = plan.scenario
     if not adapter_.step_setting:
-        return [Point(scenario, engine, "default", {}, default=True, repeats=repeats)]
-    mechanism, times = build_mechanism(scenario), scenario.time.t
+        return [Point(scenario, engine, "default", {}, default=True, repeats=repeats, settings=plan.settings(adapter_))]
+    times = scenario.time.t
     interval = float(times[1] - times[0])
-    default = float(adapter_.settings_for(scenario, mechanism)[adapter_.step_setting])
+    default = float(plan.settings(adapter_)[adapter_.step_setting])
     k_default = max(1, round(interval / default))
     if quick:
         coarse = nice_count(k_default / 10)
         counts = {k_default, coarse if coarse != k_default else nice_count(10 * k_default)}
         variants = {name: o for name, o in adapter_.cost_variants.items() if not o}
     else:
-        rate = step_rate(mechanism, times)
+        rate = (plan.rates if plan.rates is not None else peak_rates(plan.mechanism, times)).rate
         counts = {nice_count(interval * rate / rad) for rad in adapter_.cost_ladder} | {k_default}
         variants = adapter_.cost_variants
-    return [Point(scenario, engine, name, {**overrides, adapter_.step_setting: interval / k}, interval / k,
-                  default=not overrides and k == k_default, repeats=repeats)
-            for name, overrides in variants.items() for k in sorted(counts)]
+    points = []
+    for name, overrides in variants.items():
+        for k in sorted(counts):
+            chosen = {**overrides, adapter_.step_setting: interval / k}
+            points.append(Point(scenario, engine, name, chosen, interval / k, default=not overrides and k == k_default,
+                                repeats=repeats, settings=plan.settings(adapter_, chosen)))
+    return points
 
 
-def sweep(scenarios: Sequence[Scenario], engines: Iterable[str], executor: Executor, quick: bool = False,
+def sweep(scenarios: Sequence[Scenario | Plan], engines: Iterable[str], executor: Executor, quick: bool = False,
           repeats: int = 3, on_done: Callable[[Point, Done], None] = lambda point, done: None) -> pd.DataFrame:
-    """The cost table (COLUMNS) of every engine on every scenario, plus one
-    reference row per scenario (its own cost; class and error empty)."""
-    require_unique_names(scenarios)     # the references below are keyed by name
+    """The cost table (COLUMNS) of every engine on every scenario (or its
+    prepared plan), plus one reference row per scenario (its own cost;
+    class and error empty)."""
+    require_unique_names([scenario_of(s) for s in scenarios])     # the references below are keyed by name
     engines = list(engines)
-    points = [Point(s, REFERENCE, "closed form", repeats=repeats) for s in scenarios]
-    points += [p for s in scenarios for e in engines for p in points_for(s, e, quick, repeats)]
+    plans = [planned(s, engines) for s in scenarios]
+    points = [Point(plan.scenario, REFERENCE, "closed form", repeats=repeats) for plan in plans]
+    points += [p for plan in plans for e in engines for p in points_for(plan, e, quick, repeats)]
     # Finest steps first: the longest tasks start early and the pool drains
     # evenly. The table keeps the points' own order.
     order = sorted(range(len(points)), key=lambda k: (points[k].engine != REFERENCE, points[k].step))

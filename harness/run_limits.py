@@ -13,9 +13,10 @@ from typing import Any, Mapping
 
 from mechval.adapter import EngineAdapter, as_float
 from mechval.engines.registry import adapter
-from mechval.linkages import build_mechanism
 from mechval.scenario import Scenario, ScenarioError
 from mechval.limits import signal_count
+
+from .plan import prepare
 
 #: Default limits of one engine run (overridden by --max-steps, --max-memory).
 #: Measured 11-34 µs per step (up to 100 on a loaded machine): 10⁷ steps
@@ -76,12 +77,15 @@ def run_size(scenario: Scenario, engine: EngineAdapter | str, settings: Mapping[
 
 
 def check_run(scenario: Scenario, engine: str, overrides: Mapping[str, Any] | None = None,
-              limits: Limits = Limits()) -> RunSize:
+              limits: Limits = Limits(), settings: Mapping[str, Any] | None = None) -> RunSize:
     """Refuse an engine run over the step or memory limit, saying what it
     would take. The key named is the file's step setting if it has one,
-    else time.end (steps) or time.samples (memory of the output tables)."""
+    else time.end (steps) or time.samples (memory of the output tables).
+    `settings`: the run's, resolved by its plan (else resolved here, with
+    `overrides`)."""
     engine_adapter = adapter(engine)
-    settings = engine_adapter.settings_for(scenario, build_mechanism(scenario), overrides)
+    if settings is None:
+        settings = prepare(scenario, [engine_adapter]).settings(engine_adapter, overrides)
     size = run_size(scenario, engine_adapter, settings)
     in_file = [key for key in engine_adapter.step_settings if key in scenario.settings_for(engine)]
     step_key = f"engines.{engine}.{in_file[0]}" if in_file else "time.end"

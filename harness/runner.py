@@ -15,12 +15,12 @@ import pandas as pd
 
 from mechval.compare import COLUMNS, compare
 from mechval.engines.registry import REFERENCE, adapter
-from mechval.linkages import build_mechanism
 from mechval.outcome import Outcome, Task
 from mechval.scenario import Scenario, require_unique_names
 from mechval.signals import Signals
 
 from .executors import Done, LocalExecutor
+from .plan import Plan, planned, scenario_of
 from .simulate import simulate
 
 
@@ -29,21 +29,25 @@ def simulate_task(task: Task) -> tuple[Signals, float, float]:
     worker's CPU time (all its threads; on a shared machine the steadier
     figure of what the run costs)."""
     start, cpu = time.perf_counter(), time.process_time()
-    signals = simulate(task.scenario, task.engine, task.overrides, task.feed)
+    signals = simulate(task.scenario, task.engine, task.overrides, task.feed, task.settings)
     return signals, time.perf_counter() - start, time.process_time() - cpu
 
 
-def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Task]:
+def tasks_for(scenarios: Iterable[Scenario | Plan], engines: Iterable[str]) -> list[Task]:
     """One task per scenario × engine × the engine's reported variants.
 
     Hard scenarios run at each engine's default setting only: they test
     stability, and the accuracy variants would multiply their long runs.
+    Each scene is prepared once (`mechval.harness.plan`; pass the plans to
+    share them with other phases); each task carries its resolved settings,
+    so that its worker derives nothing.
     """
-    scenarios = list(scenarios)
-    require_unique_names(scenarios)
+    engines, scenarios = list(engines), list(scenarios)
+    require_unique_names([scenario_of(scene) for scene in scenarios])
+    plans = [planned(scene, engines) for scene in scenarios]
     tasks = []
-    for scenario in scenarios:
-        mechanism = build_mechanism(scenario)
+    for plan in plans:
+        scenario = plan.scenario
         for engine in engines:
             engine_adapter = adapter(engine)
             variants = engine_adapter.variants
@@ -52,10 +56,10 @@ def tasks_for(scenarios: Iterable[Scenario], engines: Iterable[str]) -> list[Tas
             for setting, overrides in variants.items():
                 # Bad [engines.NAME] settings are the user's input: refuse them
                 # here, with file and key, rather than as a failed run.
-                settings = engine_adapter.settings_for(scenario, mechanism, overrides)
+                settings = plan.settings(engine_adapter, overrides)
                 step = settings.get(engine_adapter.step_setting)
                 steps = scenario.time.end / step if isinstance(step, float) and step > 0 else 0.0
-                tasks.append(Task(scenario, engine, setting, dict(overrides), steps))
+                tasks.append(Task(scenario, engine, setting, dict(overrides), steps, settings=settings))
     return tasks
 
 
@@ -103,9 +107,11 @@ def discrepancies(outcomes: list[Outcome], references: Mapping[str, Signals]) ->
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=COLUMNS)
 
 
-def references_for(scenarios: Iterable[Scenario]) -> dict[str, Signals]:
-    """The reference per scenario name (names are refused unless unique)."""
+def references_for(scenarios: Iterable[Scenario | Plan]) -> dict[str, Signals]:
+    """The reference per scenario name (names are refused unless unique),
+    of scenarios or their prepared plans."""
     scenarios = list(scenarios)
-    require_unique_names(scenarios)
+    require_unique_names([scenario_of(scene) for scene in scenarios])
+    plans = [planned(scene) for scene in scenarios]
     reference = adapter(REFERENCE)
-    return {s.name: simulate(s, reference) for s in scenarios}
+    return {plan.scenario.name: simulate(plan, reference) for plan in plans}

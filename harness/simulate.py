@@ -8,36 +8,39 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping
 
-from mechval.adapter import EngineAdapter, Unrepresentable, mechanism_features
+from mechval.adapter import EngineAdapter, Unrepresentable
 from mechval.engine_inputs import EngineInputs, Feed, fed_mechanism
 from mechval.engines.registry import REFERENCE, adapter
 from mechval.health import health
-from mechval.linkages import build_mechanism
 from mechval.scenario import Scenario, ScenarioError
 from mechval.signals import Signals, canonical_signals
 
+from .plan import Plan, prepare
 
-def simulate(scenario: Scenario, engine: EngineAdapter | str,
-             overrides: Mapping[str, Any] | None = None, feed: Feed | None = None) -> Signals:
+
+def simulate(scenario: Scenario | Plan, engine: EngineAdapter | str,
+             overrides: Mapping[str, Any] | None = None, feed: Feed | None = None,
+             settings: Mapping[str, Any] | None = None) -> Signals:
     """Canonical signals of `engine` (an adapter or a registered name) on
-    the scenario, with its settings, run facts and health (docs/adapters.md).
-    A scene the engine cannot represent is refused as bad input, naming the
-    scenario's file.
+    the scenario (or its prepared `Plan`, `mechval.harness.plan`), with its
+    settings, run facts and health (docs/adapters.md). A scene the engine
+    cannot represent is refused as bad input, naming the scenario's file.
 
+    The settings are `settings` when given (resolved once by the caller's
+    plan, with `overrides` already applied), else resolved here.
     An engine run records what it read from the reference (`Signals.inputs`,
     `mechval.engine_inputs`); given a `feed` (a baseline's record), it runs
     with exactly those settings and reads instead of deriving them here."""
     engine_adapter = adapter(engine) if isinstance(engine, str) else engine
-    mechanism = build_mechanism(scenario)
-    for feature, key in mechanism_features(mechanism).items():
-        if feature not in engine_adapter.features:
-            why = engine_adapter.feature_limits.get(feature)
-            raise ScenarioError(scenario.source, key, f"{engine_adapter.name}: " + (
-                f"cannot run {feature}: {why}" if why else f"its adapter does not build {feature} yet"))
-    if feed is None:
-        settings = engine_adapter.settings_for(scenario, mechanism, overrides)
-    else:
+    plan = scenario if isinstance(scenario, Plan) else prepare(scenario)
+    scenario, mechanism = plan.scenario, plan.mechanism
+    plan.refuse_unbuilt_features(engine_adapter)
+    if feed is not None:
         settings = dict(feed.settings)
+    elif settings is None:
+        settings = plan.for_engines([engine_adapter]).settings(engine_adapter, overrides)
+    else:
+        settings = dict(settings)
     # The reference's own run reads its motion at every sample: nothing to feed.
     inputs = None if engine_adapter.name == REFERENCE else EngineInputs(feed.reads if feed else None)
     try:

@@ -606,8 +606,8 @@ def reference_off_by_an_ulp(monkeypatch):
     every mechanism built from now on and the forward-dynamics reference's
     columns. The machine's OpenBLAS settings are left alone."""
     import mechval.engines.base as base
-    import mechval.harness.simulate as harness_simulate
-    build, integrate = harness_simulate.build_mechanism, base.raw_dynamics
+    import mechval.harness.plan as harness_plan
+    build, integrate = harness_plan.build_mechanism, base.raw_dynamics
 
     def build_off(scenario):
         mechanism = build(scenario)
@@ -618,7 +618,7 @@ def reference_off_by_an_ulp(monkeypatch):
         solution = integrate(*args, **kwargs)
         return dataclasses.replace(solution, frame=nudged_frame(solution.frame))
 
-    monkeypatch.setattr(harness_simulate, "build_mechanism", build_off)
+    monkeypatch.setattr(harness_plan, "build_mechanism", build_off)
     monkeypatch.setattr(base, "raw_dynamics", integrate_off)
 
 

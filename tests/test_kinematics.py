@@ -115,32 +115,3 @@ def test_revolute_gap_is_the_distance_of_the_pins():
     np.testing.assert_allclose(joint_gap(raw, pin), np.abs(block_pin - lever_pin), rtol=1e-12)
     both = SimpleNamespace(joints=(pin, SLOT))              # all joint_gaps reads of a mechanism
     np.testing.assert_array_equal(joint_gaps(both, raw), np.maximum(joint_gap(raw, pin), joint_gap(raw, SLOT)))
-
-
-def test_the_step_rate_is_solved_once_per_scenario(monkeypatch):
-    """Planning, the limits check and the model audit each ask for a
-    scenario's mechanism and its step rate: one mechanism object per
-    scenario object, its dense solve done once; another scenario object,
-    even an equal one, and a changed mechanism get their own."""
-    from dataclasses import replace
-
-    from mechval import planar_scene
-    from mechval.kinematics import step_rate
-    from mechval.linkages import build_mechanism
-    from mechval.scenarios import load
-
-    scenario = load("jansen-leg")
-    mechanism = build_mechanism(scenario)
-    assert build_mechanism(scenario) is mechanism
-    twin = replace(scenario)
-    assert build_mechanism(twin) is not mechanism
-    solves = []
-    solve = planar_scene.raw_planar
-    monkeypatch.setattr(planar_scene, "raw_planar", lambda mech, t: solves.append(len(t)) or solve(mech, t))
-    times = scenario.time.t
-    first = step_rate(mechanism, times)
-    assert step_rate(build_mechanism(scenario), times) == first and solves == [20001]
-    assert step_rate(build_mechanism(twin), times) == first and solves == [20001, 20001]   # its own solve
-    step_rate(mechanism, times, dense=2001)
-    assert solves == [20001, 20001, 2001]
-    assert replace(mechanism, gravity=(0.0, -9.81)).derived == {}

@@ -421,13 +421,13 @@ def test_masses_mujoco_cannot_hold_are_refused_with_the_key(engine, monkeypatch)
     import dataclasses
 
     from mechval.engines.base import Unrepresentable
-    from mechval.harness import simulate as harness_simulate
+    from mechval.harness import plan as harness_plan
     from mechval.scenario import ScenarioError
     scenario = builtin_scenario("slider-crank")
     mech = build_mechanism(scenario)
     light = dataclasses.replace(mech, bodies=tuple(dataclasses.replace(b, mass=1e-300) if b.name == "crank" else b
                                                    for b in mech.bodies))
-    monkeypatch.setattr(harness_simulate, "build_mechanism", lambda s: light)
+    monkeypatch.setattr(harness_plan, "build_mechanism", lambda s: light)
     with pytest.raises(ScenarioError, match="mass.crank: mujoco: MuJoCo refuses a moving body lighter") as refused:
         simulate(scenario, engine)
     assert refused.value.source == str(scenario.source)

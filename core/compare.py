@@ -3,7 +3,8 @@
 `compare` returns one discrepancy record per signal (a pandas DataFrame):
 where the largest error happened, how large it is in absolute and relative
 terms, the bound it is judged by, their ratio and the verdict. pytest
-messages, reports and baselines are all built from these records.
+messages (`mechval.testing`), reports and baselines are all built from
+these records.
 
 The rule (reference in the expected position):
 - angle and position classes: max |engine − reference| ≤ tol (rad, m);
@@ -198,12 +199,3 @@ def passed(records: pd.DataFrame) -> bool:
     """True when no record failed (missing values with a reason do not fail)."""
     return not (records["verdict"] == "fail").any()
 
-
-def format_records(records: pd.DataFrame, only_failures: bool = False) -> str:
-    """A fixed-width table of the records, worst ratio first (for terminals
-    and pytest messages)."""
-    shown = records[records["verdict"] == "fail"] if only_failures else records
-    shown = shown.sort_values("ratio", ascending=False, na_position="first")
-    columns = ["scenario", "engine", "setting", "signal", "max_error", "t_max", "relative_error",
-               "bound", "ratio", "verdict", "reason"]
-    return shown[columns].to_string(index=False, float_format=lambda v: f"{v:.3g}")

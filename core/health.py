@@ -53,8 +53,6 @@ from .planar_positions import mechanism_size
 #: has one of energy_drift and energy_balance, and drive_error only with drives.
 HEALTH_COLUMNS = ("nonfinite", "gap", "drive_error", "assembly_flip", "power_residual", "constraint_drift",
                   "energy_drift", "energy_balance")
-#: Series the report draws besides them (J; energy_quadrature: relative).
-ENERGY_SERIES = ("energy", "work", "energy_quadrature")
 #: Measures that do not apply to every mechanism, and why (a mechanism
 #: they do not apply to has no such column, and the comparison no row).
 NOT_APPLICABLE = {

@@ -71,8 +71,9 @@ def _equations(mech: Mechanism, motion, layout: Layout):
     over the instants, so that every operation below is contiguous):
     force-row right-hand sides (2nb, n); the moment and axial rows as sparse
     maps {unknown column: coefficient (array or number)}; their right-hand
-    sides (k, n). `motion` maps raw column names to arrays."""
-    n = len(motion["t"])
+    sides (k, n). `motion` maps the motion columns (`motion_columns()`) to
+    arrays; the instants themselves are not needed."""
+    n = len(np.atleast_1d(motion[f"{mech.bodies[0].name}.x"]))
     prismatic = [j for j in mech.joints if j.kind == "prismatic"]
     b_force = np.zeros((layout.n_force_rows, n))
     rows: list[dict] = [{} for _ in range(len(layout.bodies) + len(prismatic))]
@@ -164,9 +165,9 @@ def solve_small(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def reaction_values(mech: Mechanism, motion) -> np.ndarray:
     """Joint reactions and drive torque, (unknowns, instants), in the order
-    of `Mechanism.reaction_columns`; `motion` maps raw column names to
-    arrays. Exact to rounding: the null-space split is an exact change of
-    variables."""
+    of `Mechanism.reaction_columns`; `motion` maps each of
+    `Mechanism.motion_columns()` to an array over the instants. Exact to
+    rounding: the null-space split is an exact change of variables."""
     layout = Layout.of(mech)
     C = _incidence(mech, layout)
     _, _, vt = np.linalg.svd(C)

@@ -12,13 +12,10 @@ import pandas as pd
 
 from . import __version__
 from .adapter import FEATURES, EngineAdapter, RawRun, RunInfo, Unrepresentable
-from .linkages import build_mechanism
 from .mechanism import Mechanism
 from .dynamics import raw_dynamics
 from .newton_euler import reaction_values
 from .planar_solver import MechanismError, raw_planar
-from .scenario import Scenario
-from .signals import Signals, canonical_signals
 
 #: Instants per chunk: bounds memory on long runs and feeds one thread each.
 CHUNK = 1 << 17
@@ -87,17 +84,3 @@ class ReferenceAdapter(EngineAdapter):
             return RawRun(solution.frame, solution.missing, RunInfo(facts=dict(solution.facts)))
         return RawRun(raw_reference(mechanism, times), info=RunInfo(facts={"method": METHOD}))
 
-
-def simulate_reference(scenario: Scenario) -> Signals:
-    """The reference's canonical signals at the scenario's samples.
-
-    The whole adapter path (`mechval.harness.simulate`) would also compute
-    the reference's health; the comparison never reads it (the reference is
-    the expected side), so this shortcut maps the raw columns only.
-    """
-    mechanism = build_mechanism(scenario)
-    raw = ReferenceAdapter().run(mechanism, scenario.time.t, {})
-    # Its missing values keep their reasons (a reaction redundant
-    # constraints leave indeterminate), so that they are never compared.
-    return canonical_signals(mechanism, raw.frame, ReferenceAdapter.name, __version__, {}, raw.missing,
-                             info=raw.info)

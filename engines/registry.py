@@ -3,13 +3,14 @@
 Registering by module path keeps `mechval list`, scenario loading and test
 collection free of engine imports (xarray's backend registry does the same).
 
-Two sources, built-ins first:
-- `ADAPTERS`: the adapters shipped with mechval;
-- the entry-point group `mechval.engines` of every installed distribution:
-  an engine team ships its adapter in a package of its own, declaring e.g.
-  `[project.entry-points."mechval.engines"] drake = "mechval_drake:DrakeAdapter"`,
-  and mechval finds it without being forked. A plug-in may not take a
-  built-in's name.
+Every engine is an entry point of the group `mechval.engines`, mechval's
+own included (pyproject.toml registers MuJoCo, PyBullet and Exudyn exactly
+as a third party registers a plug-in): an engine team ships its adapter in
+a package of its own, declaring e.g.
+`[project.entry-points."mechval.engines"] drake = "mechval_drake:DrakeAdapter"`,
+and mechval finds it without being forked. mechval's own engines come
+first and keep their names: a plug-in that takes one (or "reference") is
+ignored with a warning that says which one is used.
 
 An engine is available when its adapter imports and the engine library it
 names (`EngineAdapter.library`, the library's own import name) imports.
@@ -20,22 +21,18 @@ from __future__ import annotations
 import functools
 import importlib
 import importlib.metadata
+import warnings
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from .base import EngineAdapter
 
-#: Built-in engine name → "module:Class". "reference" is the analytic solution.
-ADAPTERS = {
-    "mujoco": "mechval.engines.mujoco:MujocoAdapter",
-    "pybullet": "mechval.engines.pybullet:PybulletAdapter",
-    "exudyn": "mechval.engines.exudyn:ExudynAdapter",
-}
-ENGINE_NAMES = tuple(ADAPTERS)
 #: The analytic reference is an adapter too; it is not an engine to compare.
 REFERENCE = "reference"
 REFERENCE_ADAPTER = "mechval.reference:ReferenceAdapter"
 ENTRY_POINT_GROUP = "mechval.engines"
+#: The distribution whose entry points are the built-in engines.
+OWN_DISTRIBUTION = "mechval"
 
 
 class UnknownEngine(ValueError):
@@ -47,20 +44,39 @@ class EngineUnavailable(RuntimeError):
     """The engine's library is not installed or fails to import."""
 
 
+class EngineNameTaken(UserWarning):
+    """Two installed distributions register one engine name; one is used."""
+
+
+def _origin(entry: importlib.metadata.EntryPoint) -> str:
+    dist = getattr(entry, "dist", None)
+    return f"{dist.name} {dist.version}" if dist is not None else "an unknown distribution"
+
+
+def _is_builtin(entry: importlib.metadata.EntryPoint) -> bool:
+    dist = getattr(entry, "dist", None)
+    return dist is not None and dist.name == OWN_DISTRIBUTION
+
+
 @functools.lru_cache(maxsize=1)
-def plugins() -> dict[str, str]:
-    """Engine name → "module:Class" from the `mechval.engines` entry points
-    (built-in names and "reference" are reserved and skipped)."""
-    found = {}
-    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-        if entry.name not in ADAPTERS and entry.name != REFERENCE:
-            found[entry.name] = entry.value
-    return found
-
-
 def targets() -> dict[str, str]:
-    """Every engine name → "module:Class": built-ins, then plug-ins."""
-    return {**ADAPTERS, **plugins()}
+    """Every engine name → "module:Class" from the `mechval.engines` entry
+    points: mechval's own first, then plug-ins in the order found. A name
+    registered twice keeps the built-in (else the first found) and warns,
+    naming both; "reference" is never a plug-in's."""
+    entries = sorted(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP), key=lambda e: not _is_builtin(e))
+    kept: dict[str, importlib.metadata.EntryPoint] = {}
+    for entry in entries:
+        if entry.name == REFERENCE:
+            warnings.warn(f"{ENTRY_POINT_GROUP}: {entry.name!r} = {entry.value!r} of {_origin(entry)} is ignored: "
+                          f"{REFERENCE!r} is mechval's analytic reference", EngineNameTaken, stacklevel=2)
+            continue
+        first = kept.setdefault(entry.name, entry)
+        if first is not entry:
+            which = "mechval's built-in engine" if _is_builtin(first) else f"the one of {_origin(first)}"
+            warnings.warn(f"{ENTRY_POINT_GROUP}: {entry.name!r} = {entry.value!r} of {_origin(entry)} is ignored: "
+                          f"{which}, {first.value!r}, has that name and is used", EngineNameTaken, stacklevel=2)
+    return {name: entry.value for name, entry in kept.items()}
 
 
 def engine_names() -> tuple[str, ...]:

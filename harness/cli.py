@@ -8,6 +8,7 @@ import datetime
 import os
 import sys
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, ContextManager
@@ -453,8 +454,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _registry_warnings() -> None:
+    """Read the engine registry once, saying on one line each engine name
+    two installed distributions register and which one is used."""
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        engine_names()
+    for warning in said:
+        print(one_line(f"mechval: warning: {warning.message}"), file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    _registry_warnings()
     try:
         with stop_on_signals():
             return args.func(args)

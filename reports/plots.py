@@ -116,18 +116,6 @@ def log_codes(values: np.ndarray) -> tuple[np.ndarray, float, float]:
     return codes, lo, hi
 
 
-def linear_values(codes: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Inverse of linear_codes (to its resolution); report.js does the same."""
-    return np.where(codes == _U16_NAN, np.nan, lo + codes * ((hi - lo) / (_U16_NAN - 1)))
-
-
-def log_values(codes: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Inverse of log_codes (to its resolution); report.js does the same."""
-    codes = codes.astype(np.int16)
-    magnitude = 10.0 ** (lo + (np.abs(codes.astype(float)) - 1) * ((hi - lo) / _I16_TOP))
-    return np.where(codes == _I16_NAN, np.nan, np.where(codes == 0, 0.0, np.sign(codes) * magnitude))
-
-
 def encode_stream(codes: np.ndarray) -> str:
     """16-bit codes (any sign) for the page: differences of neighbours
     (modulo 2¹⁶; smooth signals give small ones), low bytes then high
@@ -136,13 +124,6 @@ def encode_stream(codes: np.ndarray) -> str:
     words = codes.view(np.uint16) if codes.dtype.itemsize == 2 else codes.astype(np.uint16)
     steps = np.diff(words, prepend=np.uint16(0))         # wraps modulo 2¹⁶, as intended
     return deflated(np.concatenate([steps & 0xFF, steps >> 8]).astype(np.uint8).tobytes())
-
-
-def decode_stream(text: str) -> np.ndarray:
-    """Inverse of encode_stream (uint16 codes); report.js does the same."""
-    planes = np.frombuffer(zlib.decompress(base64.b64decode(text)), dtype=np.uint8)
-    low, high = planes[:len(planes) // 2].astype(np.uint16), planes[len(planes) // 2:].astype(np.uint16)
-    return np.cumsum(low | (high << 8), dtype=np.uint16)
 
 
 class _Stream:

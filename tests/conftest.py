@@ -1,16 +1,23 @@
-"""Shared fixtures: scenarios, the cached reference, engine adapters."""
+"""Shared fixtures: scenarios, the cached reference, engine adapters. The
+marks, `mechval_compare` and `--mechval-report DIR` come from mechval's
+pytest plugin (`mechval.testing.plugin`), as in any repository."""
 
 from __future__ import annotations
 
 import functools
+import importlib.metadata
 
 import pytest
 
-from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, adapter
-from mechval.reference import simulate_reference
+from mechval.engines.registry import ENTRY_POINT_GROUP
 from mechval.scenarios import builtin_names, load
+from mechval.testing.comparison import engine_or_skip, reference_of
 
 BUILTIN = builtin_names()
+#: mechval's own engines: the entry points its pyproject.toml registers
+#: (a plug-in installed beside them is not tested by this suite).
+ENGINES = tuple(entry.name for entry in importlib.metadata.distribution("mechval").entry_points
+                if entry.group == ENTRY_POINT_GROUP)
 
 
 @functools.lru_cache(maxsize=None)
@@ -33,57 +40,14 @@ CANNOT_RUN = {("exudyn", "planar-extra/parallelogram-double-fourbar"):
               "double-fourbar-falling.toml: joint: exudyn: cannot run redundant constraints"}
 
 
-@functools.lru_cache(maxsize=None)
 def builtin_reference(name: str):
-    return simulate_reference(builtin_scenario(name))
+    """The reference on a built-in, solved once per session (shared with
+    `mechval_compare`)."""
+    return reference_of(builtin_scenario(name))
 
 
-def engine_or_skip(name: str):
-    """The named adapter, or skip the test with the reason it is unavailable."""
-    try:
-        return adapter(name)
-    except EngineUnavailable as exc:
-        pytest.skip(str(exc))
-
-
-@pytest.fixture(params=ENGINE_NAMES)
+@pytest.fixture(params=ENGINES)
 def engine(request):
     return engine_or_skip(request.param)
 
 
-# --- pytest --mechval-report DIR: the same report, written from a test session.
-
-COMPARISONS: list = []      # (Outcome, records) of every comparison test that ran
-
-
-def pytest_addoption(parser):
-    parser.addoption("--mechval-report", metavar="DIR", default=None,
-                     help="write the discrepancy report of the session's comparison tests to DIR")
-
-
-@pytest.fixture
-def record_comparison():
-    """Tests call record_comparison(scenario, engine, signals, records,
-    wall_time) so that --mechval-report can show their results."""
-    from mechval.outcome import Outcome, Task
-
-    def record(scenario, engine, signals, records, wall_time=0.0, setting="default"):
-        COMPARISONS.append((Outcome(Task(scenario, engine, setting), signals, wall_time=wall_time), records))
-    return record
-
-
-def pytest_sessionfinish(session, exitstatus):
-    out = session.config.getoption("--mechval-report", default=None)
-    if not out or not COMPARISONS:
-        return
-    import pandas as pd
-    from pathlib import Path
-    from mechval.reports.build import write_report
-    from mechval.reports.stability import stability_section
-    outcomes = [o for o, _ in COMPARISONS]
-    scenarios = list({o.task.scenario.name: o.task.scenario for o in outcomes}.values())
-    references = {s.name: simulate_reference(s) for s in scenarios}
-    records = pd.concat([r for _, r in COMPARISONS], ignore_index=True)
-    sections = [s for s in (stability_section(records, scenarios),) if s]
-    path = write_report(Path(out), scenarios, references, outcomes, records, sections)
-    session.config.get_terminal_writer().line(f"mechval report: {path / 'index.html'}")

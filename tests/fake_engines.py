@@ -13,9 +13,11 @@ import signal
 import sys
 import time
 from pathlib import Path
+from typing import Callable, Mapping
 
 import numpy as np
 
+from mechval.engines import registry
 from mechval.engines.base import EngineAdapter, RawRun
 from mechval.dynamics import raw_dynamics
 from mechval.reference import raw_reference
@@ -125,9 +127,16 @@ FAKES = {cls.name: f"fake_engines:{cls.__name__}"
          for cls in (Faithful, Stepless, Crashing, Hanging, Busy, NonFinite, Raising, Spiking, Loose)}
 
 
+def registered(extra: Mapping[str, str] = FAKES) -> Callable[[], dict[str, str]]:
+    """A stand-in for `registry.targets` that adds `extra` (name →
+    "module:Class", taking a name's place if it is one) to the installed
+    engines: `monkeypatch.setattr(registry, "targets", registered())`."""
+    engines = {**registry.targets(), **extra}
+    return lambda: engines
+
+
 if __name__ == "__main__":
     # `mechval` with the fakes registered; the workers, forked, inherit them.
     from mechval.harness import cli
-    from mechval.engines import registry
-    registry.ADAPTERS.update(FAKES)
+    registry.targets = registered()
     sys.exit(cli.main())

@@ -1,8 +1,10 @@
 """Mechanisms for the general reference's tests that the four closed-form
 kinds cannot express: two drives, a prismatic drive (on the ground and
 between two moving bodies), spring-dampers, body torques, and a redundant
-parallelogram. Each comes with an approximate assembly pose worked out
-here by hand (rounded), never by the solver under test."""
+parallelogram (the slider-driven slider-crank is in
+`mechval.testing.mechanisms`, which the contract suite uses). Each comes
+with an approximate assembly pose worked out here by hand (rounded), never
+by the solver under test."""
 
 from __future__ import annotations
 
@@ -10,15 +12,12 @@ import numpy as np
 
 from mechval.drive import DriveLaw
 from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, Joint, Mechanism, SpringDamper
+# The slider-driven slider-crank is one of the contract suite's mechanisms.
+from mechval.testing.mechanisms import SLIDER, bar, slider_driven_slider_crank  # noqa: F401
 
 
 def _no_closed_form(t):
     raise NotImplementedError("no closed form: solve with mechval.planar_solver")
-
-
-def bar(name: str, mass: float, length: float) -> Body:
-    """A uniform bar along its frame's x axis from the origin."""
-    return Body(name, mass, (length / 2, 0.0), mass * length**2 / 12)
 
 
 def circle_apex(a: np.ndarray, b: np.ndarray, ra: float, rb: float) -> np.ndarray:
@@ -89,33 +88,6 @@ def boom() -> Mechanism:
         forces=(SpringDamper("tie", "boom", (1.0, 0.0), GROUND, (1.2, 1.0), 300.0, 0.5, 5.0),
                 BodyTorque("twist", "barrel", 0.5)),
         assembly_pose={k: BodyPose(round(v, 1)) for k, v in pose.items()},
-    )
-
-
-SLIDER = dict(crank=0.1, conrod=0.3)
-
-
-def slider_driven_slider_crank(law: DriveLaw = DriveLaw(0.35, -0.12, 0.0)) -> Mechanism:
-    """The slider-crank driven by its slider: the guide (ground, slider) is
-    a prismatic drive along x through O, x_B = s(t); the crank follows on
-    its upper branch. Closed form: r² + x² − 2·r·x·cosθ2 = l²."""
-    r, l = SLIDER["crank"], SLIDER["conrod"]
-    bodies = (bar("crank", 1.0, r), bar("conrod", 2.0, l), Body("slider", 3.0, (0.0, 0.0), 1e-3))
-    joints = (
-        Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0)),
-        Joint("A", "revolute", "conrod", "crank", (0.0, 0.0), (r, 0.0)),
-        Joint("B", "revolute", "slider", "conrod", (0.0, 0.0), (l, 0.0)),
-        Joint("guide", "prismatic", GROUND, "slider", (0.0, 0.0), (0.0, 0.0), axis=(1.0, 0.0), damping=4.0),
-    )
-    x = law.phi0
-    th2 = np.arccos((r * r + x * x - l * l) / (2 * r * x))
-    a = r * np.array([np.cos(th2), np.sin(th2)])
-    th3 = float(np.arctan2(-a[1], x - a[0]))
-    return Mechanism(
-        name="slider-driven", kind="planar", bodies=bodies, joints=joints, drive=Drive("guide", law),
-        gravity=(0.0, -9.81), motion=_no_closed_form, signal_map={},
-        assembly_pose={"crank": BodyPose(round(float(th2), 1)), "conrod": BodyPose(round(th3, 1)),
-                       "slider": BodyPose(0.0)},
     )
 
 

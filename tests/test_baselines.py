@@ -21,15 +21,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import BUILTIN, CLOSED_FORM, builtin_reference, builtin_scenario, engine_or_skip
-from fake_engines import FAKES
+from conftest import BUILTIN, CLOSED_FORM, ENGINES, builtin_reference, builtin_scenario, engine_or_skip
+from fake_engines import registered
 from mechval.harness import baseline as bl
 from mechval.linkages import build_mechanism
 from mechval.mechanism import GROUND
 from mechval.harness.baseline_run import check_run, fed
 from mechval.harness.cli import main
 from mechval.engines import registry
-from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, availability
+from mechval.engines.registry import EngineUnavailable, availability
 from mechval.reports.build import provenance
 from mechval.harness.runner import tasks_for
 from mechval.outcome import Task
@@ -49,7 +49,7 @@ def baseline_tasks() -> list:
     is not installed gives one case that skips with the reason (collecting
     must not fail without it)."""
     params = []
-    for engine in ENGINE_NAMES:
+    for engine in ENGINES:
         try:
             tasks = tasks_for([builtin_scenario(n) for n in NOT_HARD], [engine])
         except EngineUnavailable as exc:
@@ -356,7 +356,7 @@ def test_regression_stands_when_the_obtained_file_cannot_be_written(stored, tmp_
 
 
 def test_save_refuses_non_finite_signals_without_a_reason(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     assert baseline_cli("save", "--engine", "nonfinite", "--dir", str(tmp_path / "b")) == 1
     assert "non-finite values without a reason" in capsys.readouterr().err
     assert not (tmp_path / "b").exists()
@@ -439,7 +439,7 @@ def two_short_scenes(tmp_path: Path) -> list[str]:
 
 
 def test_one_corrupt_baseline_does_not_stop_the_check(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     scenes, root = two_short_scenes(tmp_path), tmp_path / "b"
     command = ["baseline", "save", *scenes, "--engine", "faithful", "--dir", str(root), "--workers", "1"]
     assert main(command) == 0
@@ -464,7 +464,7 @@ def files_under(folder: Path) -> dict[Path, bytes]:
 @pytest.mark.parametrize("name", ["../../../../outside", "ABSOLUTE", "a/b", "..", ".hidden", "-x", "a b", "a*",
                                   "x" * 101])
 def test_unsafe_scenario_name_is_refused_before_anything_is_written(tmp_path, monkeypatch, capsys, name):
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     name = str(tmp_path / "abs") if name == "ABSOLUTE" else name
     scene, root = Path(two_short_scenes(tmp_path)[0]), tmp_path / "deep" / "er" / "b"
     scene.write_text(scene.read_text().replace('name = "short-a"', f"name = {json.dumps(name)}"))
@@ -482,7 +482,7 @@ def test_unsafe_scenario_name_is_refused_before_anything_is_written(tmp_path, mo
 
 
 def test_safe_names_are_written_only_under_the_dir(tmp_path, monkeypatch):
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     scene, root = two_short_scenes(tmp_path)[0], tmp_path / "b"
     before = files_under(tmp_path)
     assert main(["baseline", "save", scene, "--engine", "faithful", "--dir", str(root), "--workers", "1"]) == 0
@@ -499,7 +499,7 @@ def test_unsafe_engine_version_is_refused(tmp_path, monkeypatch, capsys):
         def version(cls):
             return "../../../escaped"
     monkeypatch.setattr(sys.modules[__name__], "Escaping", Escaping, raising=False)
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, "faithful": f"{__name__}:Escaping"})
+    monkeypatch.setattr(registry, "targets", registered({"faithful": f"{__name__}:Escaping"}))
     before = files_under(tmp_path)
     assert baseline_cli("save", "--engine", "faithful", "--dir", str(tmp_path / "b"), "--force") == 2
     assert "the installed faithful library: faithful version '../../../escaped' cannot name" in capsys.readouterr().err
@@ -517,7 +517,7 @@ def fake_save(tmp_path: Path, root: Path, *extra: str) -> int:
 def test_save_refuses_symbolic_links_inside_the_dir(tmp_path, monkeypatch, capsys, link):
     """A link inside --dir could lead outside it: refused before any run,
     nothing written through it (before: followed, exit 0)."""
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     root, outside = tmp_path / "b", tmp_path / "outside"
     outside.mkdir()
     assert fake_save(tmp_path, root) == 0
@@ -535,7 +535,7 @@ def test_save_refuses_symbolic_links_inside_the_dir(tmp_path, monkeypatch, capsy
 def test_check_does_not_read_a_baseline_through_a_link(tmp_path, monkeypatch, capsys):
     """A default.csv linked to another file is a corrupt baseline, and no
     line of that file is printed."""
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     root, secret = tmp_path / "b", tmp_path / "secret.txt"
     secret.write_text("TOP-SECRET first line\n")
     assert fake_save(tmp_path, root) == 0
@@ -569,7 +569,7 @@ def test_concurrent_saves_of_one_baseline_do_not_both_succeed(tmp_path, monkeypa
     scene = two_short_scenes(tmp_path)[0]
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).parent))
     command = [sys.executable, "-c", "import sys, fake_engines, mechval.engines.registry as r; "
-               "r.ADAPTERS.update(fake_engines.FAKES); from mechval.harness.cli import main; "
+               "r.targets = fake_engines.registered(); from mechval.harness.cli import main; "
                "sys.exit(main(sys.argv[1:]))", "baseline", "save", scene, "--engine", "faithful", "--dir",
                str(tmp_path / "b"), "--workers", "1"]
     runs = [subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -581,7 +581,7 @@ def test_concurrent_saves_of_one_baseline_do_not_both_succeed(tmp_path, monkeypa
 def test_save_removes_what_a_killed_save_left(tmp_path, monkeypatch):
     """A save killed mid-write leaves .NAME.PID.tmp: the next save of that
     folder removes it when its process is gone, and keeps a live one's."""
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     root = tmp_path / "b"
     assert fake_save(tmp_path, root) == 0
     folder = next(root.rglob("default.csv")).parent

@@ -61,7 +61,7 @@ def test_bad_file_is_refused_cleanly(tmp_path):
 
 def test_unknown_engine_lists_available(tmp_path):
     out = mechval("simulate", "fourbar-seed", "--engine", "bullet3", "--csv", tmp_path / "x.csv")
-    assert out.returncode == 2 and "available: reference, mujoco, pybullet, exudyn" in out.stderr
+    assert out.returncode == 2 and "available: reference, exudyn, mujoco, pybullet" in out.stderr
     assert "Traceback" not in out.stderr
 
 
@@ -73,10 +73,10 @@ def test_analyse_reports_grashof_and_toggles():
 
 def test_simulate_refuses_to_write_an_engine_blow_up(tmp_path, monkeypatch):
     """NaN without a reason (an engine blow-up) writes no CSV, exit 1."""
-    from fake_engines import FAKES
+    from fake_engines import registered
     from mechval.harness import cli
     from mechval.engines import registry
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     csv = tmp_path / "out.csv"
     assert cli.main(["simulate", "slider-crank", "--engine", "nonfinite", "--csv", str(csv)]) == 1
     assert not csv.exists()
@@ -86,10 +86,10 @@ def test_simulate_reports_an_engine_error_on_one_line(tmp_path, monkeypatch, cap
     """An engine that raises (a solver giving up, as Exudyn's SolverError on
     a 10¹⁸ m conrod) is an engine failure: exit 1, one line, no CSV, no
     traceback."""
-    from fake_engines import FAKES
+    from fake_engines import registered
     from mechval.harness import cli
     from mechval.engines import registry
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     csv = tmp_path / "out.csv"
     assert cli.main(["simulate", "slider-crank", "--engine", "raising", "--csv", str(csv)]) == 1
     err = capsys.readouterr().err
@@ -100,10 +100,10 @@ def test_simulate_reports_an_engine_error_on_one_line(tmp_path, monkeypatch, cap
 def test_simulate_an_adapter_without_a_time_step(tmp_path, monkeypatch):
     """No step setting (like the reference): its run size is no steps, and
     it simulates (the run-size check once raised KeyError here)."""
-    from fake_engines import FAKES
+    from fake_engines import registered
     from mechval.harness import cli
     from mechval.engines import registry
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     csv = tmp_path / "out.csv"
     assert cli.main(["simulate", "slider-crank", "--engine", "stepless", "--csv", str(csv)]) == 0
     assert csv.exists()

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 from plotly.offline import get_plotlyjs
 
-from fake_engines import FAKES
+from fake_engines import registered
 from mechval.harness.cli import main
 from mechval.harness.cost import HEADLINE, REFERENCE, nice_count, points_for, sweep
 from mechval.cost_tables import asymptotic_range, cheapest, convergence
@@ -116,7 +116,7 @@ def test_dask_cluster_gives_identical_errors(local_table, short_toml, tmp_path, 
 
 
 def test_failures_are_data(monkeypatch, short_toml):
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     engines = ["faithful", "raising", "nonfinite", "crashing"]
     table = sweep([load(str(short_toml))], engines, LocalExecutor(workers=2, timeout=60.0), quick=True, repeats=1)
     headline = table[table["class"] == HEADLINE].groupby("engine")["failure"].first()
@@ -132,7 +132,7 @@ def test_failures_are_data(monkeypatch, short_toml):
 
 def test_an_adapter_without_a_time_step_costs_one_point(monkeypatch, short_toml):
     """No step to sweep: its defaults are one point, timed and compared."""
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     table = sweep([load(str(short_toml))], ["stepless"], LocalExecutor(workers=1, timeout=60.0), repeats=1)
     mine = table[table["engine"] == "stepless"]
     assert set(mine["variant"]) == {"default"} and mine["default"].all() and (mine["failure"] == "").all()
@@ -145,7 +145,7 @@ def test_a_free_scene_sweeps_its_ladder_at_its_reference_runs_peak_rate(monkeypa
     peak |ω2|); each point's error is over the whole run (the largest
     |engine − reference| over every sample), finite, and shrinks with the
     setting (the fake 'loose' engine: the reference at rtol = step)."""
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     text = builtin_path("fourbar-falling").read_text(encoding="utf-8")
     path = tmp_path / "short-falling.toml"
     path.write_text(text.replace("end = 3.0", "end = 0.5").replace("samples = 301", "samples = 51"), encoding="utf-8")
@@ -194,10 +194,9 @@ def test_cheapest_setting_or_the_best_when_not_reached():
 
 @pytest.mark.engine
 def test_cost_section_in_the_run_report(local_table, tmp_path, short_toml):
-    from mechval.reference import simulate_reference
     scene = load(str(short_toml))
     section = cost_section(local_table, convergence(local_table), cheapest(local_table))
-    reference = simulate_reference(scene)
+    reference = simulate(scene, "reference")
     records = pd.DataFrame(columns=["scenario", "engine", "setting", "signal", "verdict", "ratio"])
     out = build.write_report(tmp_path / "run", [scene], {scene.name: reference}, [], records, [section])
     html = (out / "index.html").read_text()

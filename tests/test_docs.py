@@ -8,20 +8,21 @@ from __future__ import annotations
 
 import argparse
 import ast
+import importlib
 import os
 import re
 import subprocess
 import sys
+import sysconfig
 import tomllib
 from pathlib import Path
 
 import pytest
 
-from conftest import engine_or_skip
+from conftest import ENGINES, engine_or_skip
 from mechval.harness.cli import build_parser
-from mechval.engines.registry import ENGINE_NAMES
 from mechval.linkages import LINKAGES, build_mechanism
-from mechval.reference import simulate_reference
+from mechval.harness.simulate import simulate
 from mechval.scenario import DEFAULT_TOLERANCE
 from mechval.scenarios import load, parse
 from mechval.signals import SIGNAL_CLASS, signal_names
@@ -72,12 +73,12 @@ def test_toml_blocks_are_valid_toml(text):
 @pytest.mark.parametrize("text", blocks("toml", "scenario"))
 def test_scenario_examples_load_and_have_a_reference(text):
     scenario = parse(tomllib.loads(text), "docs example")
-    reference = simulate_reference(scenario)
+    reference = simulate(scenario, "reference")
     assert list(reference.frame.columns) == list(signal_names(scenario.mechanism))
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("engine_name", ENGINE_NAMES)
+@pytest.mark.parametrize("engine_name", ENGINES)
 def test_scenario_examples_engine_settings_are_accepted(engine_name):
     engine = engine_or_skip(engine_name)
     for param in blocks("toml", "scenario"):
@@ -113,7 +114,7 @@ ENGINE_TITLES = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "exudyn": "Exudyn"}
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("engine_name", ENGINE_NAMES)
+@pytest.mark.parametrize("engine_name", ENGINES)
 def test_every_engine_setting_is_documented(engine_name):
     """engines.md has a settings row per key, and the summary in
     scenario-format.md lists exactly the adapter's keys."""
@@ -144,7 +145,7 @@ def test_every_command_is_listed_in_the_docs_index():
 
 #: Folder → the package it is installed as.
 LAYER_PACKAGES = {"core": "mechval", "scenarios": "mechval.scenarios", "engines": "mechval.engines",
-                  "reports": "mechval.reports", "harness": "mechval.harness"}
+                  "reports": "mechval.reports", "harness": "mechval.harness", "testing": "mechval.testing"}
 
 
 def layer_of(module: str) -> str | None:
@@ -172,44 +173,115 @@ def imported_layers(folder: str) -> dict[str, set[str]]:
 
 def test_the_layers_hold_in_the_imports():
     """Each folder imports only the layers docs/README.md's "Layers" table
-    allows it ("nothing of the others", named layers, or "all of the above")."""
+    allows it ("nothing of the others", named layers, or "all of the
+    above": the rows above its own)."""
     rows = [r for r in table_rows(section("README.md", "Layers")) if r[0].startswith("`") and r[0].endswith("/`")]
     allowed = {}
     for folder, _package, _holds, may in rows:
         folder = folder.strip("`/")
-        allowed[folder] = set(LAYER_PACKAGES) if "all" in may else set(re.findall(r"`(\w+)`", may))
+        allowed[folder] = set(allowed) if "all" in may else set(re.findall(r"`(\w+)`", may))
     assert set(allowed) == set(LAYER_PACKAGES)
     for folder, may in allowed.items():
         wrong = {layer: files for layer, files in imported_layers(folder).items() if layer not in may}
         assert not wrong, f"{folder}/ imports {wrong}"
 
 
+def scratch_environment(root: Path) -> Path:
+    """A virtual environment of its own under `root` (not mechval's .venv)
+    in which mechval is installed: this interpreter's site-packages (mechval
+    and its pinned dependencies) added as a site directory, as a
+    `pip install PATH/TO/mechval` would have put them there, offline and in
+    a second. Returns its python."""
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(root)], check=True, capture_output=True)
+    python = root / "bin" / "python"
+    site = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                          check=True, capture_output=True, text=True).stdout.strip()
+    mechval_site = sysconfig.get_paths()["purelib"]
+    Path(site, "mechval-installed.pth").write_text(f"import site; site.addsitedir({mechval_site!r})\n")
+    return python
+
+
 def test_the_plugin_example_installs_and_passes_the_contract(tmp_path):
-    """adapters.md's plug-in (module and pyproject.toml), pip-installed into
-    a folder of its own, is found through its entry point and passes the
-    contract suite with the docs' own test file; the only skips are the
-    ones that file states."""
+    """adapters.md's plug-in (module, pyproject.toml with its pinned engine
+    library, and test file), laid out as its own repository outside
+    mechval's tree and pip-installed into a scratch environment (not
+    mechval's .venv), is found through its entry point and passes the
+    contract suite from its own test file against the installed mechval:
+    no unknown-mark warning, and the only skips are the ones that file
+    states."""
     (module,) = [param.values[0] for param in blocks("python", "plugin")]
     (pyproject,) = [param.values[0] for param in blocks("toml", "plugin")]
     (contract_test,) = [param.values[0] for param in blocks("python", "plugin-test")]
-    (target,) = tomllib.loads(pyproject)["project"]["entry-points"]["mechval.engines"].values()
+    project = tomllib.loads(pyproject)["project"]
+    (target,) = project["entry-points"]["mechval.engines"].values()
     package = target.partition(":")[0]
-    source, site, tests = tmp_path / "src", tmp_path / "site", tmp_path / "tests"
-    (source / package).mkdir(parents=True)
-    (source / package / "__init__.py").write_text(module)
-    (source / "pyproject.toml").write_text(pyproject)
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
-                    "--target", str(site), str(source)], check=True, capture_output=True)
-    tests.mkdir()
-    (tests / "test_plugin_contract.py").write_text(contract_test)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(ROOT / "tests")])}
-    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", str(tests)],
-                         cwd=tests, env=env, capture_output=True, text=True, timeout=300)
+    repository = tmp_path / "mechval-faithful"
+    (repository / package).mkdir(parents=True)
+    (repository / package / "__init__.py").write_text(module)
+    (repository / "pyproject.toml").write_text(pyproject)
+    (repository / "tests").mkdir()
+    (repository / "tests" / "test_faithful.py").write_text(contract_test)
+    python = scratch_environment(tmp_path / "env")
+    # Offline: the pinned library is found installed, setuptools builds.
+    install = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--no-index", "--no-build-isolation",
+                              str(repository)], capture_output=True, text=True, timeout=120)
+    assert install.returncode == 0, install.stdout + install.stderr
+    installed = subprocess.run([str(python), "-c", f"import {package}; print({package}.__file__)"],
+                               capture_output=True, text=True, cwd=tmp_path, check=True).stdout
+    assert Path(installed).is_relative_to(tmp_path / "env"), installed
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    run = subprocess.run([str(python), "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", "tests"],
+                         cwd=repository, env=env, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout + run.stderr
-    assert re.search(r"\d+ passed", run.stdout), run.stdout
+    assert re.search(r"\d+ passed", run.stdout) and "warning" not in run.stdout.lower(), run.stdout
     stated = re.findall(r'without_\w+ = "([^"]+)"', contract_test)
     skips = [line for line in run.stdout.splitlines() if line.startswith("SKIPPED")]
     assert all(any(line.endswith(reason) for reason in stated) for line in skips), skips
+
+
+def test_the_plugin_template_pins_its_engine_library():
+    """Checklist step 1 in the template itself: its pyproject.toml pins the
+    adapter's `library` (numpy here) to the version mechval pins, so that
+    both install together."""
+    (module,) = [param.values[0] for param in blocks("python", "plugin")]
+    (pyproject,) = [param.values[0] for param in blocks("toml", "plugin")]
+    (library,) = re.findall(r'library = "(\w+)"', module)
+    pins = [d for d in tomllib.loads(pyproject)["project"].get("dependencies", []) if d.startswith(f"{library}==")]
+    ours = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"]
+    assert len(pins) == 1 and pins[0] in ours, (pins, ours)
+
+
+def public_api() -> dict[str, list[str]]:
+    """adapters.md's "The public API" table: module → names."""
+    rows = [r for r in table_rows(section("adapters.md", "The public API")) if r[0].startswith("`")]
+    return {module.strip("`"): re.findall(r"`(\w+)`", names) for module, names, _ in rows}
+
+
+def test_the_public_api_imports():
+    """Every name of the public API table imports from its module, and
+    mechval.testing exports exactly its listed names."""
+    api = public_api()
+    assert len(api) >= 15 and all(api.values()), api
+    missing = [f"{module}.{name}" for module, names in api.items() for name in names
+               if not hasattr(importlib.import_module(module), name)]
+    assert not missing, missing
+    assert sorted(importlib.import_module("mechval.testing").__all__) == sorted(api["mechval.testing"])
+
+
+def test_the_docs_examples_use_only_the_public_api():
+    """The plug-in, its contract test and the comparison example import
+    from mechval nothing that the public API table does not list."""
+    api = public_api()
+    examples = [p.values[0] for marker in ("plugin", "plugin-test", "compare-example") for p in blocks("python", marker)]
+    assert len(examples) == 3
+    outside = []
+    for text in examples:
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("mechval"):
+                outside += [f"{node.module}.{a.name}" for a in node.names if a.name not in api.get(node.module, [])]
+            elif isinstance(node, ast.Import):
+                outside += [a.name for a in node.names if a.name.startswith("mechval")]
+    assert not outside, outside
 
 
 def slug(heading: str) -> str:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from fake_engines import FAKES
+from fake_engines import registered
 from mechval.harness.cli import main
 from mechval.harness.cost import sweep
 from mechval.engines import registry
@@ -30,7 +30,7 @@ def scene(tmp_path: Path, file: str, name: str, crank: str = "0.10") -> Path:
 
 @pytest.fixture
 def fakes(monkeypatch):
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
 
 
 @pytest.mark.parametrize("command", [

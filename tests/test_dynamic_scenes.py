@@ -26,7 +26,7 @@ from mechval.harness.cli import main
 from mechval.health import joint_gaps
 from mechval.kinematics import step_rate
 from mechval.linkages import build_mechanism
-from mechval.reference import simulate_reference
+from mechval.harness.simulate import simulate
 from mechval.scenario import ScenarioError
 from mechval.scenarios import builtin_path, parse
 from test_dynamics import ACCURACY, ANDREWS, DRIFT, energy_residual, gauss_instants
@@ -102,9 +102,9 @@ def test_andrews_scene_file_reaches_the_published_coordinates_at_30_ms():
 def test_a_torque_law_is_the_drive_torque_signal_and_a_free_crank_has_none():
     """T12 of a torque-driven crank is the applied torque (the law); a free
     crank has no drive, so no T12; a planar torque law's signal is NAME.T."""
-    motor = simulate_reference(builtin_scenario("slider-crank-motor")).frame
+    motor = simulate(builtin_scenario("slider-crank-motor"), "reference").frame
     assert (motor["T12"] == 2.0).all() and motor["omega2"].iloc[0] == 0.0
-    falling = simulate_reference(builtin_scenario("fourbar-falling")).frame
+    falling = simulate(builtin_scenario("fourbar-falling"), "reference").frame
     assert "T12" not in falling and falling["theta2"].iloc[0] == 0.0 and falling["omega2"].iloc[0] == 0.0
 
 
@@ -114,7 +114,7 @@ def test_the_peak_rate_of_a_free_scene_is_its_reference_runs():
     motion: at least its crank's peak |ω2| over the run (no drive law to
     read it from)."""
     scenario = builtin_scenario("fourbar-falling")
-    peak = np.abs(simulate_reference(scenario).frame["omega2"]).max()
+    peak = np.abs(simulate(scenario, "reference").frame["omega2"]).max()
     assert peak > 10.0 and step_rate(build_mechanism(scenario), scenario.time.t) >= peak
 
 
@@ -293,7 +293,7 @@ def test_a_half_driven_planar_file_keeps_its_drive():
     scenario = parse(with_("five-bar-two-drives", half), "half.toml")
     mech = build_mechanism(scenario)
     assert len(mech.drives) == 1 and mech.initial_values and scenario.forward_dynamics
-    frame = simulate_reference(scenario).frame
+    frame = simulate(scenario, "reference").frame
     law, t = scenario.scene.drives[0].law, scenario.time.t
     joint = mech.joint(mech.drive.joint)
     relative = frame[f"{joint.body_j}.theta"] - (0.0 if joint.body_i == "ground" else frame[f"{joint.body_i}.theta"])

@@ -12,13 +12,13 @@ from pathlib import Path
 
 import pytest
 
-from conftest import engine_or_skip
+from conftest import ENGINES, engine_or_skip
 from mechval.harness import cli
-from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, adapter_class
+from mechval.engines.registry import EngineUnavailable, adapter_class
 from mechval.linkages import build_mechanism
 from mechval.scenario import EngineTable, ScenarioError
 from mechval.scenarios import builtin_path, parse
-from scenario_data import slider_crank
+from mechval.testing.scenes import slider_crank
 
 pytestmark = pytest.mark.engine     # every test here needs the adapters' engine libraries
 
@@ -74,7 +74,7 @@ MECHANISM = build_mechanism(SCENARIO)
 
 
 DEFAULTS = {}
-for _engine in ENGINE_NAMES:
+for _engine in ENGINES:
     try:
         DEFAULTS[_engine] = adapter_class(_engine)().default_settings(MECHANISM, SCENARIO.time.t)
     except EngineUnavailable:                 # not installed: its tests skip with the reason
@@ -82,7 +82,7 @@ for _engine in ENGINE_NAMES:
 
 
 def bad_cases():
-    for engine in ENGINE_NAMES:
+    for engine in ENGINES:
         if engine not in DEFAULTS:
             yield pytest.param(engine, "", None, id=engine)
             continue
@@ -120,7 +120,7 @@ def refuse_to_run(monkeypatch, engine: str) -> None:
     ("pybullet", "preroll_steps", -10), ("exudyn", "spectral_radius", -1), ("mujoco", "solimp", "garbage"),
     ("mujoco", "solimp", SOLIMP_INJECTION), ("mujoco", "clock_mass", 1e-300), ("mujoco", "refine", 10**9),
     *[("mujoco", "integrator", s) for s in HOSTILE_STRINGS], ("exudyn", "full_newton", 1),
-    *[(e, "timestep", v) for e in ENGINE_NAMES for v in (math.nan, math.inf, -1e-3, 1e300, "1e-3", 1e-12)]])
+    *[(e, "timestep", v) for e in ENGINES for v in (math.nan, math.inf, -1e-3, 1e300, "1e-3", 1e-12)]])
 def test_bad_setting_refused_in_one_line_before_any_run(tmp_path, capsys, monkeypatch, engine, key, value):
     """`mechval simulate` with a bad setting in the file: exit 2, one line
     naming the file and the key, no run, no CSV."""
@@ -135,7 +135,7 @@ def test_bad_setting_refused_in_one_line_before_any_run(tmp_path, capsys, monkey
     assert not csv.exists()
 
 
-@pytest.mark.parametrize("engine", ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_settings_spec_covers_exactly_the_defaults(engine):
     """Every setting an adapter has is declared, and its own defaults,
     variants and cost variants pass the declaration."""
@@ -151,7 +151,7 @@ def test_settings_spec_covers_exactly_the_defaults(engine):
             cls.settings_spec[key].parse(value)
 
 
-@pytest.mark.parametrize("engine", ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_hostile_scenario_name_runs(tmp_path, engine):
     """Quotes, <, & in the scenario's name change nothing (MuJoCo used to
     paste the name into its XML and fail to parse it)."""

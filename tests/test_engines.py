@@ -5,29 +5,19 @@ reason and measured figure)."""
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
-from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
-from mechval.compare import compare, format_records, passed
-from mechval.engines.registry import ENGINE_NAMES
+from conftest import BUILTIN, ENGINES, builtin_scenario, engine_or_skip
+from mechval.compare import compare
+from mechval.testing import assert_within_tolerance
 from mechval.harness.simulate import simulate
 
 
 @pytest.mark.engine
 @pytest.mark.parametrize("scenario_name", [n for n in BUILTIN if "hard" not in builtin_scenario(n).tags])
-@pytest.mark.parametrize("engine_name", ENGINE_NAMES)
-def test_engine_matches_reference(engine_name, scenario_name, record_comparison):
-    engine = engine_or_skip(engine_name)
-    scenario = builtin_scenario(scenario_name)
-    start = time.perf_counter()
-    result = simulate(scenario, engine)
-    wall_time = time.perf_counter() - start
-    records = compare(builtin_reference(scenario_name), result, scenario.tolerance_for(engine_name),
-                      scenario=scenario_name)
-    record_comparison(scenario, engine_name, result, records, wall_time)
-    assert passed(records), "\n" + format_records(records)
+@pytest.mark.parametrize("engine_name", ENGINES)
+def test_engine_matches_reference(engine_name, scenario_name, mechval_compare):
+    mechval_compare(builtin_scenario(scenario_name), engine_name)
 
 
 #: Point masses (a mass given as a number: izz = 0) that turn with another
@@ -54,20 +44,19 @@ POINT_MASS_SCENES = {
 
 @pytest.mark.engine
 @pytest.mark.parametrize("scene", list(POINT_MASS_SCENES))
-@pytest.mark.parametrize("engine_name", ENGINE_NAMES)
+@pytest.mark.parametrize("engine_name", ENGINES)
 def test_turning_point_mass_meets_default_tolerances(engine_name, scene):
     """The README's number form of the block (izz = 0) runs in every engine
     and meets the default tolerances (MuJoCo refused it with a traceback)."""
-    from mechval.reference import simulate_reference
     from mechval.scenarios import parse
     engine = engine_or_skip(engine_name)
     scenario = parse(POINT_MASS_SCENES[scene], f"{scene}.toml")
     assert all(b.izz == 0.0 for b in scenario.scene.bodies if b.name in ("block", "rocker"))
-    records = compare(simulate_reference(scenario), simulate(scenario, engine), scenario.tolerance, scenario=scene)
-    assert passed(records), "\n" + format_records(records)
+    records = compare(simulate(scenario, "reference"), simulate(scenario, engine), scenario.tolerance, scenario=scene)
+    assert_within_tolerance(records)
 
 
-@pytest.mark.parametrize("engine_name", ["reference", *(pytest.param(n, marks=pytest.mark.engine) for n in ENGINE_NAMES)])
+@pytest.mark.parametrize("engine_name", ["reference", *(pytest.param(n, marks=pytest.mark.engine) for n in ENGINES)])
 def test_raw_columns_are_the_ones_the_harness_reads(engine_name):
     """A built-in adapter's raw frame holds t and the Mechanism's motion and
     reaction columns, nothing more: those are what the canonical signals and

@@ -15,18 +15,19 @@ import pytest
 
 import andrews as A
 import dynamic_mechanisms as dm
-from contract import ANGLE, AdapterContract, dynamic_errors
+from mechval.testing.contract import ANGLE, AdapterContract, dynamic_errors
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
 from mechval.audit import audit, expected_model, failures
-from mechval.compare import compare, format_records, passed
+from mechval.compare import compare
+from mechval.testing import assert_within_tolerance, discrepancy_table
 from mechval.drive import DriveLaw
 from mechval.dynamics import raw_dynamics
 from mechval.linkages import build_mechanism
 from mechval.adapter import Unrepresentable
 from mechval.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, InitialValue, Joint, Mechanism
-from mechval.reference import raw_reference, simulate_reference
+from mechval.reference import raw_reference
 from mechval.scenarios import parse
-from scenario_data import fourbar, slider_crank
+from mechval.testing.scenes import fourbar, slider_crank
 
 from mechval.harness.simulate import simulate
 
@@ -59,7 +60,7 @@ def adapter():
 
 def errors(adapter, scenario, overrides=None, reference=None):
     """Discrepancy records of the Exudyn adapter on the scenario."""
-    reference = reference or simulate_reference(scenario)
+    reference = reference or simulate(scenario, "reference")
     return compare(reference, simulate(scenario, adapter, overrides), scenario.tolerance_for("exudyn"),
                    scenario=scenario.name)
 
@@ -116,7 +117,7 @@ def test_trap_exudyn_initial_accelerations_ignore_the_drive(adapter):
     """Exudyn's own initial-acceleration solve ignores φ''; with undamped
     trapezoidal index-2 the wrong start never decays (measured 16 %)."""
     scene = short_seed()
-    reference = simulate_reference(scene)
+    reference = simulate(scene, "reference")
     assert max_relative(errors(adapter, scene, reference=reference)) < 1e-5
     assert max_relative(errors(adapter, scene, {"compute_initial_accelerations": True}, reference)) > 1e-2
 
@@ -126,7 +127,7 @@ def test_trap_modified_newton_with_default_tolerances(adapter):
     (measured 3.8e-5 at dt 1e-4, where full Newton at the scaled tolerance
     gives 8e-9)."""
     scene = short_seed()
-    reference = simulate_reference(scene)
+    reference = simulate(scene, "reference")
     exudyn_defaults = {"timestep": 1e-4, "full_newton": False,
                        "newton_relative_tolerance": 1e-8, "newton_absolute_tolerance": 1e-10}
     assert max_relative(errors(adapter, scene, {"timestep": 1e-4}, reference)) < 1e-7
@@ -142,7 +143,7 @@ def test_trap_fixed_absolute_newton_tolerance_aborts_at_round_off(adapter):
     with pytest.raises(exudyn.SolverError):
         simulate(scene, adapter, {**unreachable, "newton_absolute_tolerance": 1e-14})
     records = errors(adapter, scene, unreachable)
-    assert passed(records), format_records(records)
+    assert_within_tolerance(records)
 
 
 def test_trap_spectral_radius_one_makes_index3_forces_zig_zag(adapter):
@@ -185,7 +186,7 @@ def test_gravity_and_torque_signs(adapter, gravity):
     it follows the reference's sign and flips with gravity."""
     scene = parse(fourbar(drive={"omega0": 0.2, "alpha": 0.0}, effects={"gravity": gravity},
                           time={"end": 2.0, "samples": 201}), "test")
-    reference = simulate_reference(scene)
+    reference = simulate(scene, "reference")
     result = simulate(scene, adapter)
     for signal in ("T12", "F12y"):
         big = np.abs(reference[signal]) > 0.1 * np.abs(reference[signal]).max()
@@ -202,7 +203,7 @@ def test_index3_variant(adapter):
     scene = builtin_scenario("fourbar-seed")
     result = simulate(scene, adapter, {"solver": "index3"})
     records = compare(builtin_reference("fourbar-seed"), result, scene.tolerance_for("exudyn"))
-    assert passed(records), format_records(records)
+    assert_within_tolerance(records)
     assert max_relative(records) < 2e-4
     assert result.info.facts["closure_gap_max"] < 1e-12
     assert not result.missing
@@ -226,20 +227,20 @@ def test_user_scene_150_rad_per_s_damped(adapter, data):
     settings meet the default tolerances."""
     scene = parse(data, "test")
     records = errors(adapter, scene)
-    assert passed(records), format_records(records)
+    assert_within_tolerance(records)
 
 
 def test_fourbar_seed_default_accuracy(adapter):
     records = errors(adapter, builtin_scenario("fourbar-seed"), reference=builtin_reference("fourbar-seed"))
     relative = records[~records["class"].isin(["angle"])]["relative_error"]
-    assert relative.max() < SEED_DEFAULT_ERROR, format_records(records)
+    assert relative.max() < SEED_DEFAULT_ERROR, discrepancy_table(records)
 
 
 def test_high_accuracy_setting(adapter):
     records = errors(adapter, builtin_scenario("fourbar-seed"), HIGH_ACCURACY, builtin_reference("fourbar-seed"))
-    assert records["relative_error"].max() < HIGH_ACCURACY_ERROR, format_records(records)
+    assert records["relative_error"].max() < HIGH_ACCURACY_ERROR, discrepancy_table(records)
     angles = records[records["class"] == "angle"]["max_error"]
-    assert angles.max() < HIGH_ACCURACY_ERROR, format_records(records)
+    assert angles.max() < HIGH_ACCURACY_ERROR, discrepancy_table(records)
 
 
 # --- a prismatic joint between two moving bodies ---------------------------
@@ -312,7 +313,7 @@ class TestContract(AdapterContract):
     engine = "exudyn"
 
 
-# --- torque-driven and free motion (beyond tests/contract.py) -----------------
+# --- torque-driven and free motion (beyond mechval.testing.contract) -----------------
 
 def dynamic_case(name: str, end: float, samples: int = 101):
     """A case of tests/dynamic_mechanisms.py with its assembly pose, and its

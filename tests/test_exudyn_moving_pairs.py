@@ -14,11 +14,11 @@ import pytest
 
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
 from mechval.audit import failures
-from mechval.compare import compare, format_records, passed
+from mechval.compare import compare, passed
+from mechval.testing import discrepancy_table
 from mechval.harness.simulate import simulate
 from mechval.linkages import build_mechanism
 from mechval.mechanism import GROUND, Body, Joint, Mechanism
-from mechval.reference import simulate_reference
 from mechval.scenarios import parse
 
 pytestmark = pytest.mark.engine
@@ -97,9 +97,9 @@ def test_a_torque_law_between_two_moving_links(adapter):
     times = scenario.time.t
     settings = adapter.settings_for(scenario, mechanism)
     assert failures(adapter.audit(mechanism, times, settings)).empty
-    records = compare(simulate_reference(scenario), simulate(scenario, adapter), scenario.tolerance_for("exudyn"),
+    records = compare(simulate(scenario, "reference"), simulate(scenario, adapter), scenario.tolerance_for("exudyn"),
                       scenario=scenario.name)
-    assert passed(records), format_records(records, only_failures=True)
+    assert passed(records), discrepancy_table(records, only_failures=True)
     assert "elbow.T" in set(records["signal"])
 
 
@@ -120,7 +120,7 @@ def test_a_slide_s_couple_is_compared(adapter, name, couple, setting):
     signals = simulate(scenario, adapter, adapter.variants[setting])
     records = compare(builtin_reference(name), signals, scenario.tolerance_for("exudyn"), scenario=name)
     row = records[records["signal"] == couple].iloc[0]
-    assert couple not in signals.missing and row["verdict"] == "pass", format_records(records)
+    assert couple not in signals.missing and row["verdict"] == "pass", discrepancy_table(records)
     assert "derived from the moment balance" in signals.info.facts["derived_reactions"]
 
 

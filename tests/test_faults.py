@@ -187,9 +187,9 @@ def sigterm_guard():
 def fakes(tmp_path, monkeypatch, sigterm_guard):
     """The stand-in engines registered; busy workers announce themselves in
     the returned folder."""
-    from fake_engines import FAKES
+    from fake_engines import registered
     from mechval.engines import registry
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
     busy_dir = tmp_path / "busy"
     busy_dir.mkdir()
     monkeypatch.setenv("MECHVAL_TEST_BUSY_DIR", str(busy_dir))

@@ -29,9 +29,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import BUILTIN, CLOSED_FORM, engine_or_skip
+from conftest import BUILTIN, CLOSED_FORM, ENGINES, engine_or_skip
 from mechval.harness.cli import main
-from mechval.engines.registry import ENGINE_NAMES
 from mechval.scenarios import builtin_path
 from mechval.signals import SIGNAL_CLASS
 from toml_fuzz import Case, mutate, mutate_text
@@ -180,7 +179,7 @@ def engine_document(name: str, engine: str) -> dict:
 
 @pytest.mark.slow
 @pytest.mark.engine
-@pytest.mark.parametrize("engine", ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_mutated_builtins_through_engines(capfd, tmp_path, engine):
     """As above, through an engine; an engine that fails on a valid scene
     may also say so on one line (exit status 1)."""
@@ -245,7 +244,7 @@ def sweep_command_line(tmp_path: Path, engine: str, labelled_cases) -> list[int]
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("engine", ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_mutated_scenes_through_each_engine_command_line(tmp_path, engine):
     """A short sweep (five files, a few seconds each: one start-up of
     mechval and the engine); `-m slow` runs the longer one below."""
@@ -255,7 +254,7 @@ def test_mutated_scenes_through_each_engine_command_line(tmp_path, engine):
 
 @pytest.mark.slow
 @pytest.mark.engine
-@pytest.mark.parametrize("engine", ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_many_mutated_scenes_through_each_engine_command_line(tmp_path, engine):
     engine_or_skip(engine)
     counts = {name: 3 for name in BUILTIN if name != "fourbar-long-run"}
@@ -275,7 +274,7 @@ def falling_with(tmp_path: Path, old: str, new: str, name: str = "fourbar-fallin
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("engine", ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_a_motion_beyond_float64_is_refused_by_every_engine_command(tmp_path, capsys, engine):
     """fourbar-falling under gravity 9.2e18: the reference refuses it in one
     line; every engine command did so only as a traceback (Unrepresentable
@@ -298,7 +297,7 @@ def test_a_motion_beyond_float64_is_refused_by_every_engine_command(tmp_path, ca
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("engine", ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_an_engine_blow_up_is_one_line_without_numpy_warnings(tmp_path, engine):
     """fourbar-seed under gravity 1e49 (MuJoCo returns NaN from the start):
     no `RuntimeWarning: All-NaN slice` from the health figures before the

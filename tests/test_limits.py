@@ -12,15 +12,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import engine_or_skip
-from fake_engines import FAKES
+from conftest import ENGINES, engine_or_skip
+from fake_engines import registered
 from mechval.harness import cli
 from mechval.engines import registry
 from mechval.harness.run_limits import Limits, check_run, run_size
 from mechval.scenario import ScenarioError
 from mechval.scenarios import builtin_path, kinds, load, parse
 from mechval.harness.simulate import simulate
-from scenario_data import fourbar, slider_crank
+from mechval.testing.scenes import fourbar, slider_crank
 from twins import twin_document
 
 
@@ -108,13 +108,12 @@ def test_the_distant_centre_of_mass_bound_is_where_the_reference_breaks(monkeypa
     sets (from an approximate pose, as a file gives it: the closed form's
     angles at t = 0 rounded to 0.01 rad)."""
     from mechval import limits
-    from mechval.reference import simulate_reference
     doc = twin_document("fourbar-seed")
     doc["time"].update(end=1.0, samples=101)
     doc["assembly"] = {body: round(theta, 2) for body, theta in doc["assembly"].items()}
-    near = simulate_reference(parse(doc, "near.toml")).frame["rocker.theta"]
+    near = simulate(parse(doc, "near.toml"), "reference").frame["rocker.theta"]
     doc["body"][2]["com"] = [5e3, 0.0]
-    far = simulate_reference(parse(doc, "far.toml")).frame["rocker.theta"]
+    far = simulate(parse(doc, "far.toml"), "reference").frame["rocker.theta"]
     assert np.abs(far - near).max() < 1e-9
     monkeypatch.setattr(limits, "MAX_COM_DISTANCE", 1e9)
     doc["body"][2]["com"] = [1e5, 0.0]
@@ -187,7 +186,7 @@ def short_150(**time) -> dict:
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("engine", registry.ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_long_runs_refused_with_the_step_count(engine):
     """end = 5000 s at 150 rad/s: within the angle bound, but every engine
     would take over 10⁸ steps (end = 1e7 asked 9.8 TiB or hung)."""
@@ -222,7 +221,7 @@ def test_step_estimate_matches_the_engines_own_count():
     """The estimate from the settings is the count each engine reports
     (PyBullet's includes one step past the last sample, for its readings)."""
     scene = parse(slider_crank(time={"end": 0.2, "samples": 21}), "count.toml")
-    for engine in registry.ENGINE_NAMES:
+    for engine in ENGINES:
         signals = simulate(scene, engine_or_skip(engine))
         size = run_size(scene, engine, signals.settings)
         assert size.steps + (engine == "pybullet") == signals.info.steps, engine
@@ -237,7 +236,7 @@ def test_memory_refused_with_the_estimate():
 
 @pytest.fixture
 def fakes(monkeypatch):
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
 
 
 @pytest.fixture
@@ -286,9 +285,8 @@ def test_output_checked_before_engine_work(fakes, no_engine_work, tmp_path, caps
 
 def test_output_files_follow_the_umask(tmp_path):
     from mechval.harness.baseline import save
-    from mechval.reference import simulate_reference
     from mechval.signals import write_folder_atomically
-    signals = simulate_reference(parse(slider_crank(time={"end": 0.1, "samples": 11}), "x.toml"))
+    signals = simulate(parse(slider_crank(time={"end": 0.1, "samples": 11}), "x.toml"), "reference")
     previous = os.umask(0o022)
     try:
         signals.to_csv(tmp_path / "signals.csv")

@@ -14,12 +14,13 @@ from mechval.loop import measured_stroke_ratio
 from mechval.linkages import build_mechanism
 from mechval.kinematics import joint_gap
 from mechval.mechanism import GROUND
-from mechval.reference import raw_reference, simulate_reference
+from mechval.reference import raw_reference
+from mechval.harness.simulate import simulate
 from mechval.scenario import ScenarioError
 from mechval.scenarios import parse
 from mechval.signals import SIGNAL_CLASS, signal_names, with_slide_columns
 from scales import class_peaks, motion_scales
-from scenario_data import merge
+from mechval.testing.scenes import merge
 from mechval.health import power_balance
 
 
@@ -127,7 +128,7 @@ def test_slotted_lever_closed_forms():
     """θ4 = atan2(r2·sinθ2, r2·cosθ2 − r1) (mod 2π), r4 = |A − O4|,
     ṙ4 = r2·ω2·sin(θ4 − θ2), ω4 = r2·ω2·cos(θ2 − θ4)/r4, and θ3 = θ4."""
     for name, (r1, r2) in (("shaper", (0.3, 0.1)), ("whitworth-damped", (0.1, 0.25))):
-        sig = simulate_reference(SCENES[name])
+        sig = simulate(SCENES[name], "reference")
         th2, w2, th4 = sig["theta2"], sig["omega2"], sig["theta4"]
         r4 = np.sqrt(r1**2 + r2**2 - 2 * r1 * r2 * np.cos(th2))
         np.testing.assert_allclose(wrapped(th4 - np.arctan2(r2 * np.sin(th2), r2 * np.cos(th2) - r1)), 0,
@@ -143,7 +144,7 @@ def test_slotted_lever_by_hand():
     O2 (θ4 = π), r4 = 0.2 m and ω4 = −0.1·6/0.2 = −3 rad/s. The block's
     centre of mass is its pin, so the slot's couple alone turns it:
     M43 = izz_block·α4."""
-    sig = simulate_reference(SCENES["shaper"])
+    sig = simulate(SCENES["shaper"], "reference")
     assert sig["theta4"][0] == pytest.approx(np.pi, abs=1e-15)
     assert sig["s34"][0] == pytest.approx(0.2, abs=1e-15)
     assert sig["omega4"][0] == pytest.approx(-3.0, abs=1e-14)
@@ -158,7 +159,7 @@ def test_inverted_slider_half_angle(branch, sigma):
     so tan(θ3/2) = (−P ± √(P² + Q² − R²)) / (R − Q); the root with
     b = (A − O4)·e^{jθ3} > 0 is the assembly. Also θ4 = θ3 − σ·90°."""
     a, d, c = 0.1, 0.3, 0.05
-    sig = simulate_reference(parse(inverted_slider(geometry={"branch": branch}), "half-angle"))
+    sig = simulate(parse(inverted_slider(geometry={"branch": branch}), "half-angle"), "reference")
     th2 = sig["theta2"]
     rx, ry = a * np.cos(th2) - d, a * np.sin(th2)
     P, Q, R = -rx, ry, sigma * c
@@ -192,9 +193,9 @@ def test_mirror_branches(make, first, second):
     inverted slider on its left branch) onto the one at −θ2 (on its right
     branch) with mirrored gravity; angles agree modulo 2π."""
     drive, gravity = {"phi0": 0.3, "omega0": 5.0, "alpha": 1.0}, [2.0, -9.81]
-    one = simulate_reference(parse(make(geometry=first, drive=drive, effects={"gravity": gravity}), "one"))
-    two = simulate_reference(parse(make(geometry=second, drive={k: -v for k, v in drive.items()},
-                                        effects={"gravity": [gravity[0], -gravity[1]]}), "two"))
+    one = simulate(parse(make(geometry=first, drive=drive, effects={"gravity": gravity}), "one"), "reference")
+    two = simulate(parse(make(geometry=second, drive={k: -v for k, v in drive.items()},
+                                        effects={"gravity": [gravity[0], -gravity[1]]}), "two"), "reference")
     peaks = class_peaks(one, SIGNAL_CLASS)
     for name, expected in mirrored(one).items():
         error = wrapped(two[name] - expected) if name.startswith("theta") else two[name] - expected
@@ -206,7 +207,7 @@ def test_whitworth_lever_turns_continuously():
     """Crank longer than ground (Whitworth) is accepted: θ4 is continuous
     and turns as many times as the crank."""
     scene = parse(slotted_lever(geometry=WHITWORTH, drive={"omega0": 6.0}), "whitworth")
-    sig = simulate_reference(scene)
+    sig = simulate(scene, "reference")
     assert np.abs(np.diff(sig["theta4"])).max() < 0.1
     turns = lambda angle: (angle[-1] - angle[0]) / (2 * np.pi)
     assert turns(sig["theta4"]) == pytest.approx(turns(sig["theta2"]), abs=0.1)
@@ -223,7 +224,7 @@ def test_quick_return_ratio():
     (`analyse` samples every 1.5 ms)."""
     scene = SCENES["shaper-quick-return"]
     closed = (np.pi + 2 * np.arcsin(0.1 / 0.3)) / (np.pi - 2 * np.arcsin(0.1 / 0.3))
-    sig = simulate_reference(scene)
+    sig = simulate(scene, "reference")
     assert measured_stroke_ratio(sig.t, sig["omega4"], sig["omega2"]) == pytest.approx(closed, rel=5e-4)
     report = analyse(scene)
     assert report.quick_return == pytest.approx(closed, rel=1e-14)
@@ -246,7 +247,7 @@ def test_quick_return_ratio_with_offset():
 @pytest.mark.parametrize("name", ["shaper-quick-return", "hand-pump"])
 def test_canonical_columns(name):
     scene = builtin_scenario(name)
-    assert tuple(simulate_reference(scene).frame.columns) == signal_names(scene.mechanism)
+    assert tuple(simulate(scene, "reference").frame.columns) == signal_names(scene.mechanism)
 
 
 BAD = [

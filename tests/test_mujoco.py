@@ -9,17 +9,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from contract import AdapterContract
+from mechval.testing.contract import AdapterContract
 from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
-from mechval.compare import compare, format_records, passed
+from mechval.compare import compare, passed
+from mechval.testing import assert_within_tolerance, discrepancy_table
 from mechval.drive import DriveLaw
 from mechval.linkages import build_mechanism
 from mechval.mechanism import GROUND, Body, Drive, Joint, Mechanism
 from mechval.newton_euler import reactions
-from mechval.reference import simulate_reference
 from mechval.scenarios import parse
 from scales import motion_scales
-from scenario_data import fourbar, slider_crank
+from mechval.testing.scenes import fourbar, slider_crank
 
 from mechval.harness.simulate import simulate
 
@@ -120,7 +120,7 @@ def test_inverse_mode_reproduces_the_reference(engine, name):
     scenario = builtin_scenario(name)
     result = simulate(scenario, engine, {"mode": "inverse"})
     records = compare(builtin_reference(name), result, scenario.tolerance, scenario=name, setting="inverse")
-    assert worst_relative(records) <= INVERSE_AGREEMENT, "\n" + format_records(records)
+    assert worst_relative(records) <= INVERSE_AGREEMENT, "\n" + discrepancy_table(records)
 
 
 def static_scene(gravity, kind=fourbar):
@@ -147,7 +147,7 @@ def test_torque_sign(engine):
                              time={"end": 0.1, "samples": 11}), "spin-up")
     result = simulate(scenario, engine)
     assert (result["T12"] > 0).all()
-    np.testing.assert_allclose(result["T12"], simulate_reference(scenario)["T12"], rtol=1e-4)
+    np.testing.assert_allclose(result["T12"], simulate(scenario, "reference")["T12"], rtol=1e-4)
 
 
 @pytest.mark.parametrize("setting", ["default", "high-accuracy"])
@@ -157,15 +157,15 @@ def test_accuracy_on_fourbar_seed(engine, setting):
     records = compare(builtin_reference("fourbar-seed"), result, scenario.tolerance, scenario="fourbar-seed",
                       setting=setting)
     goal = DEFAULT_GOAL if setting == "default" else HIGH_ACCURACY_GOAL
-    assert passed(records) and worst_relative(records) <= goal, "\n" + format_records(records)
+    assert passed(records) and worst_relative(records) <= goal, "\n" + discrepancy_table(records)
 
 
 @pytest.mark.parametrize("name", list(USER_SCENES))
 def test_users_scene_meets_default_tolerances(engine, name):
     scenario = parse(USER_SCENES[name], name)
     result = simulate(scenario, engine)
-    records = compare(simulate_reference(scenario), result, scenario.tolerance, scenario=name)
-    assert passed(records), "\n" + format_records(records)
+    records = compare(simulate(scenario, "reference"), result, scenario.tolerance, scenario=name)
+    assert_within_tolerance(records)
     assert result.info.facts["closure_gap_max"] < 1e-6
 
 
@@ -410,8 +410,8 @@ def test_point_mass_block_inverse_mode_reproduces_the_reference(engine, scale):
     MIN_IZZ·α4: 1e-7 of the torques on a millimetre-and-gram lever.)"""
     scenario = scene_with_block(0.5 * scale, scale)
     result = simulate(scenario, engine, {"mode": "inverse"})
-    records = compare(simulate_reference(scenario), result, scenario.tolerance, setting="inverse")
-    assert worst_relative(records) <= INVERSE_AGREEMENT, "\n" + format_records(records)
+    records = compare(simulate(scenario, "reference"), result, scenario.tolerance, setting="inverse")
+    assert worst_relative(records) <= INVERSE_AGREEMENT, "\n" + discrepancy_table(records)
 
 
 def test_masses_mujoco_cannot_hold_are_refused_with_the_key(engine, monkeypatch):

@@ -1,5 +1,5 @@
 """MuJoCo on torque-driven and free mechanisms, beyond the shared contract
-(tests/contract.py runs the pendulum, the crank under a torque law, the
+(mechval.testing.contract runs the pendulum, the crank under a torque law, the
 free four-bar and the motored slider-crank): a free run has no clock and
 no pre-roll, the audit reads each torque law back, a torque law on a
 loop-closing pin, inverse mode along the integrated motion, the half-driven
@@ -15,13 +15,13 @@ import pytest
 
 import andrews as A
 import dynamic_mechanisms as dm
-from contract import ANGLE, dynamic_errors
+from mechval.testing.contract import ANGLE, dynamic_errors
 from mechval.audit import audit, expected_model, failures, format_audit
 from mechval.dynamics import raw_dynamics
 from mechval.mechanism import TorqueLaw
 from mechval.scenario import ScenarioError
 from mechval.scenarios import parse
-from scenario_data import fourbar
+from mechval.testing.scenes import fourbar
 
 try:
     import mujoco

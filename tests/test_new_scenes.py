@@ -14,14 +14,12 @@ import numpy as np
 import pytest
 
 import andrews as A
-from conftest import CANNOT_RUN, builtin_scenario, engine_or_skip
+from conftest import CANNOT_RUN, ENGINES, builtin_scenario, engine_or_skip
 from mechval.compare import compare
-from mechval.engines.registry import ENGINE_NAMES
 from mechval.harness.simulate import simulate
 from mechval.health import joint_gaps
 from mechval.linkages import build_mechanism
 from mechval.planar_solver import raw_planar
-from mechval.reference import simulate_reference
 from mechval.scenarios import builtin_names
 from scales import size
 from test_planar_solver import BOUND, power_terms
@@ -90,7 +88,7 @@ def test_parallelogram_reactions_are_missing_in_the_reference_and_never_compared
     assert records.loc[pin_names, "reason"].str.contains("reference: not unique").all()
     assert records.loc["O1.T", "verdict"] == "pass"
     # The shortcut every test's cached reference takes keeps the reasons too.
-    assert dict(simulate_reference(scenario).missing) == dict(reference.missing)
+    assert dict(simulate(scenario, "reference").missing) == dict(reference.missing)
 
 
 def test_andrews_file_starts_at_the_published_consistent_state():
@@ -111,7 +109,7 @@ PYBULLET_MOMENTS = ("PyBullet's reported pin loads on the redundant parallelogra
 
 
 @pytest.mark.engine
-@pytest.mark.parametrize("engine", ENGINE_NAMES)
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("name", NEW)
 def test_engine_meets_the_tolerances_at_its_default_setting(name, engine):
     engine_or_skip(engine)
@@ -139,7 +137,7 @@ def test_redundant_scene_compares_each_bodys_unique_resultant(name):
     that force times the mechanism's size), and they are signals, never
     missing, while the pins stay missing."""
     scenario = builtin_scenario(name)
-    reference = simulate_reference(scenario)
+    reference = simulate(scenario, "reference")
     mech = build_mechanism(scenario)
     gx, gy = mech.gravity
     expected = {}
@@ -174,7 +172,7 @@ def test_engine_resultants_are_compared_and_meet_the_bounds(name, engine):
     figures in the parallelogram's file)."""
     engine_or_skip(engine)
     scenario = builtin_scenario(name)
-    records = compare(simulate_reference(scenario), simulate(scenario, engine),
+    records = compare(simulate(scenario, "reference"), simulate(scenario, engine),
                       scenario.tolerance_for(engine), scenario.name, engine).set_index("signal")
     rows = [f"{b.name}.{q}" for b in build_mechanism(scenario).bodies for q in ("Rx", "Ry", "Rm")]
     assert (records.loc[rows, "verdict"] == "pass").all(), records.loc[rows, ["max_error", "bound"]].to_string()

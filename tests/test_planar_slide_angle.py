@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mechval.reference import simulate_reference
+from mechval.harness.simulate import simulate
 from mechval.scenarios import parse
 from mechval.scenarios.planar import AXIS_SNAP
 from conftest import CLOSED_FORM
@@ -87,14 +87,14 @@ def test_a_slider_drawn_aligned_with_the_world_stays_so():
     scenario = parse(tomllib.loads(VERTICAL), "vertical.toml")
     assert guide(scenario).axis == (0.0, 1.0)                 # normalised: u = axis/|axis|
     assert guide(scenario).held_angle == 0.0
-    reference = simulate_reference(scenario)
+    reference = simulate(scenario, "reference")
     np.testing.assert_allclose(reference["slider.theta"], 0.0, rtol=0, atol=1e-12)
     np.testing.assert_allclose(reference["slider.x"], 0.05, rtol=0, atol=1e-12)
     assert np.ptp(reference["slider.y"]) > 0.15                # it does slide: the crank's stroke 0.2 m
 
     along = parse(tomllib.loads(VERTICAL.replace("axis = [0.0, 2.0]", "axis = [0.0, 2.0]\nangle = 1.5707963267948966")
                                 .replace("slider = 0.0", "slider = 1.5")), "along.toml")
-    np.testing.assert_allclose(simulate_reference(along)["slider.x"], 0.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(simulate(along, "reference")["slider.x"], 0.0, rtol=0, atol=1e-12)
 
 
 def test_a_rounded_pose_holds_the_axis_angle_exactly():
@@ -137,7 +137,7 @@ def test_shipped_files_keep_their_numbers(name):
     for joint in old["joint"]:
         if joint.get("type") == "prismatic" and "angle" not in joint:
             joint["angle"] = math.atan2(joint["axis"][1], joint["axis"][0])
-    new, before = simulate_reference(parse(data, name)), simulate_reference(parse(old, name))
+    new, before = simulate(parse(data, name), "reference"), simulate(parse(old, name), "reference")
     assert list(new.frame.columns) == list(before.frame.columns)
     for column in new.frame.columns:
         peak = max(np.abs(before[column]).max(), 1e-300)

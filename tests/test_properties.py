@@ -17,7 +17,7 @@ from mechval.reference import raw_reference
 from mechval.scenario import ScenarioError
 from mechval.scenarios import parse
 from scales import size
-from scenario_data import fourbar, slider_crank
+from mechval.testing.scenes import fourbar, slider_crank
 
 length = st.floats(0.01, 2.0)
 mass = st.floats(1e-3, 1e3)

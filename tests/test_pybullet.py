@@ -14,19 +14,19 @@ import pytest
 
 import andrews as A
 import dynamic_mechanisms as dm
-from contract import MOVING_SLIDE, AdapterContract, dynamic_errors
+from mechval.testing.contract import MOVING_SLIDE, AdapterContract, dynamic_errors
 from conftest import engine_or_skip
 from mechval.adapter import Unrepresentable
 from mechval.audit import failures, format_audit, torque_law_item
 from mechval.dynamics import raw_dynamics
 from mechval.mechanism import InitialValue, TorqueLaw
 from mechval.planar_solver import default_pose
-from mechval.compare import compare, format_records, passed
+from mechval.compare import compare
+from mechval.testing import assert_within_tolerance
 from mechval.linkages import build_mechanism
-from mechval.reference import simulate_reference
 from mechval.scenarios import parse
 from mechval.signals import canonical_signals
-from scenario_data import fourbar, slider_crank
+from mechval.testing.scenes import fourbar, slider_crank
 from test_linkages_more import VARIANTS as SLIDE_VARIANTS
 
 from mechval.harness.simulate import simulate
@@ -75,7 +75,7 @@ def records(adapter, scenario, overrides=None, prepare=None):
     settings = adapter.settings_for(scenario, mechanism, overrides)
     raw = run_model(mechanism, scenario.time.t, settings, prepare)
     result = canonical_signals(mechanism, raw.frame, "pybullet", missing=raw.missing, info=raw.info)
-    return compare(simulate_reference(scenario), result, scenario.tolerance, scenario=scenario.name)
+    return compare(simulate(scenario, "reference"), result, scenario.tolerance, scenario=scenario.name)
 
 
 def force_error(recs) -> float:
@@ -226,7 +226,7 @@ def test_gravity_and_torque_signs(adapter):
     results = {}
     for g in (-9.81, 9.81):
         scenario = parse(slider_crank(effects={"gravity": [0.0, g]}, **held), "test")
-        result, reference = simulate(scenario, adapter), simulate_reference(scenario)
+        result, reference = simulate(scenario, adapter), simulate(scenario, "reference")
         for name in ("T12", "F12y", "F32y", "F43y", "F14y"):
             np.testing.assert_allclose(result[name], reference[name], rtol=1e-6, atol=1e-9, err_msg=name)
         results[g] = result
@@ -251,7 +251,7 @@ def test_gravity_and_torque_signs(adapter):
 def test_user_scene_at_150_rad_s_meets_default_tolerances(adapter, scene):
     scenario = parse(scene, "test")
     recs = records(adapter, scenario)
-    assert passed(recs), "\n" + format_records(recs)
+    assert_within_tolerance(recs)
 
 
 @pytest.mark.parametrize("name", ["whitworth-damped", "lever-mass-tables", "pump-left", "pump-right-damped",
@@ -264,7 +264,7 @@ def test_user_slide_scene_meets_default_tolerances(adapter, name):
     1.5–11× the default bound (pump-rotating-rod: N43 9.4×, M43 11×);
     derived, every signal meets the default tolerances."""
     recs = records(adapter, parse(SLIDE_VARIANTS[name], f"{name}.toml"))
-    assert passed(recs), "\n" + format_records(recs)
+    assert_within_tolerance(recs)
 
 
 def test_slide_reaction_is_declared_derived(adapter):

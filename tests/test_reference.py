@@ -11,13 +11,14 @@ from conftest import CLOSED_FORM, builtin_scenario
 from mechval.health import power_balance
 from mechval.kinematics import joint_gaps, point_motion
 from mechval.linkages import build_mechanism
-from mechval.reference import raw_reference, simulate_reference
-from mechval.newton_euler import assemble
+from mechval.reference import raw_reference
+from mechval.harness.simulate import simulate
+from mechval.newton_euler import assemble, reaction_values
 from mechval.scenarios import parse
 from mechval.signals import SIGNAL_CLASS
 from norton import UNKNOWNS, norton_system
 from scales import class_peaks, motion_scales, size
-from scenario_data import fourbar, slider_crank
+from mechval.testing.scenes import fourbar, slider_crank
 
 BOTH_KINDS_VARIANTS = [
     fourbar(),
@@ -77,7 +78,7 @@ def test_slider_closed_forms():
     ω3 = −r2·ω2·cosθ2 / (r3·cosθ3) (Norton eqs. 4.17, 6.22)."""
     for e in (0.0, 0.04):
         scene = parse(slider_crank(geometry={"offset": e}, drive={"omega0": 7.0, "alpha": 1.5}), "closed-form")
-        sig = simulate_reference(scene)
+        sig = simulate(scene, "reference")
         r2, r3 = 0.1, 0.4
         th2 = sig["theta2"]
         np.testing.assert_allclose(sig["x4"], r2 * np.cos(th2) + np.sqrt(r3**2 - (r2 * np.sin(th2) - e) ** 2),
@@ -90,7 +91,7 @@ def test_slider_closed_forms():
 def test_fourbar_seed_initial_position_by_hand():
     """θ2 = 0: A = (0.25, 0), |AO4| = 0.35; the isosceles triangle A-B-O4
     (0.5, 0.5) puts B at x = 0.425, y = +√(0.5² − 0.175²) (open: above)."""
-    sig = simulate_reference(builtin_scenario("fourbar-seed"))
+    sig = simulate(builtin_scenario("fourbar-seed"), "reference")
     by = np.sqrt(0.25 - 0.175**2)
     assert sig["theta3"][0] == pytest.approx(np.arctan2(by, 0.175), abs=1e-15)
     assert sig["theta4"][0] == pytest.approx(np.arctan2(by, -0.175), abs=1e-15)
@@ -103,7 +104,7 @@ def test_static_slider_crank_by_hand():
     g, m2, m3, m4, r2 = 9.81, 1.0, 2.0, 0.5, 0.1
     scene = parse(slider_crank(drive={"phi0": 0.0, "omega0": 0.0, "alpha": 0.0}, time={"end": 1.0, "samples": 3}),
                   "static")
-    sig = simulate_reference(scene)
+    sig = simulate(scene, "reference")
     expected = {"F12x": 0.0, "F12y": (m2 + m3 / 2) * g, "F32x": 0.0, "F32y": -m3 * g / 2,
                 "F43x": 0.0, "F43y": m3 * g / 2, "F14y": (m4 + m3 / 2) * g, "T12": g * r2 * (m2 + m3) / 2}
     for name, value in expected.items():
@@ -115,7 +116,7 @@ def test_static_fourbar_moment_balance():
     T12 = −Σ m·g·∂yG/∂θ2, with ∂yG/∂θ2 = velocity of G per unit ω2."""
     scene = parse(fourbar(drive={"phi0": 0.7, "omega0": 0.0, "alpha": 0.0}, time={"end": 1.0, "samples": 2}), "s")
     moving = parse(fourbar(drive={"phi0": 0.7, "omega0": 1.0, "alpha": 0.0}, time={"end": 1.0, "samples": 2}), "m")
-    sig = simulate_reference(scene)
+    sig = simulate(scene, "reference")
     mech = build_mechanism(moving)
     unit_rates = mech.motion(np.array([0.0]))
     # T·δθ2 + Σ m·g·δyG = 0 with g = −9.81 m/s² along y.
@@ -126,11 +127,11 @@ def test_static_fourbar_moment_balance():
 def test_mirror_open_crossed():
     """Mirroring about the ground line maps the open branch at θ2 onto the
     crossed branch at −θ2: angles and y-forces change sign, x-forces stay."""
-    open_ = simulate_reference(parse(fourbar(drive={"phi0": 0.2, "omega0": 2.0, "alpha": 0.7},
-                                             effects={"gravity": [3.0, -9.81]}), "open"))
-    crossed = simulate_reference(parse(fourbar(geometry={"branch": "crossed"},
+    open_ = simulate(parse(fourbar(drive={"phi0": 0.2, "omega0": 2.0, "alpha": 0.7},
+                                             effects={"gravity": [3.0, -9.81]}), "open"), "reference")
+    crossed = simulate(parse(fourbar(geometry={"branch": "crossed"},
                                                drive={"phi0": -0.2, "omega0": -2.0, "alpha": -0.7},
-                                               effects={"gravity": [3.0, 9.81]}), "crossed"))
+                                               effects={"gravity": [3.0, 9.81]}), "crossed"), "reference")
     peaks = class_peaks(open_, SIGNAL_CLASS)
     for name in open_.frame.columns[1:]:
         sign = 1.0 if name.endswith("x") else -1.0
@@ -141,11 +142,11 @@ def test_mirror_open_crossed():
 def test_mirror_right_left():
     """Mirroring about the y axis maps the right branch at θ2 onto the left
     branch at π − θ2: θ → π − θ, rates and x-forces and T12 change sign."""
-    right = simulate_reference(parse(slider_crank(geometry={"offset": 0.03}, drive={"phi0": 0.3, "alpha": 2.0},
-                                                  effects={"gravity": [2.0, -9.81]}), "right"))
-    left = simulate_reference(parse(slider_crank(geometry={"offset": 0.03, "branch": "left"},
+    right = simulate(parse(slider_crank(geometry={"offset": 0.03}, drive={"phi0": 0.3, "alpha": 2.0},
+                                                  effects={"gravity": [2.0, -9.81]}), "right"), "reference")
+    left = simulate(parse(slider_crank(geometry={"offset": 0.03, "branch": "left"},
                                                  drive={"phi0": np.pi - 0.3, "omega0": -10.0, "alpha": -2.0},
-                                                 effects={"gravity": [-2.0, -9.81]}), "left"))
+                                                 effects={"gravity": [-2.0, -9.81]}), "left"), "reference")
     peaks = class_peaks(right, SIGNAL_CLASS)
     for name in right.frame.columns[1:]:
         if name.startswith("theta"):
@@ -189,3 +190,13 @@ def test_null_space_solve_equals_full_solve(scenario):
     A, b, names = assemble(mech, raw)
     x = np.linalg.solve(A, b[..., None])[..., 0]
     np.testing.assert_allclose(raw[list(names)].to_numpy(), x, rtol=0, atol=1e-12 * np.abs(x).max())
+
+
+def test_reactions_need_only_the_motion_columns():
+    """`reaction_values` takes exactly what `Mechanism.motion_columns()`
+    lists (an adapter computing reactions from its own motion has no "t"
+    column to give: it raised KeyError 't'); the result is the reference's."""
+    mech, raw = raw_of(SCENES[2])
+    motion = {name: raw[name].to_numpy() for name in mech.motion_columns()}
+    expected = raw[mech.reaction_columns()].to_numpy().T
+    np.testing.assert_allclose(reaction_values(mech, motion), expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())

@@ -1,10 +1,10 @@
 """The analytic reference passes the adapter contract every engine passes
-(tests/contract.py): it is an adapter like the others, resolved by the
+(mechval.testing.contract): it is an adapter like the others, resolved by the
 registry as "reference"."""
 
 from __future__ import annotations
 
-from contract import AdapterContract
+from mechval.testing.contract import AdapterContract
 
 
 class TestContract(AdapterContract):

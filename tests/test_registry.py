@@ -1,9 +1,10 @@
-"""The engine registry: built-ins by module path, third-party adapters from
-the `mechval.engines` entry-point group, availability keyed on the engine
-library's own import name."""
+"""The engine registry: every engine, mechval's own included, from the
+`mechval.engines` entry-point group; a name taken twice warns and keeps
+mechval's; availability keyed on the engine library's own import name."""
 
 from __future__ import annotations
 
+import importlib.metadata
 import os
 import subprocess
 import sys
@@ -12,7 +13,10 @@ from pathlib import Path
 
 import pytest
 
+from conftest import ENGINES
 from mechval.engines import registry
+
+MUJOCO = "mechval.engines.mujoco:MujocoAdapter"
 
 TINY_ADAPTER = '''
 """A third-party engine adapter, installed as its own distribution."""
@@ -88,18 +92,43 @@ def test_an_installed_plugin_is_listed_and_runs(installed, tmp_path):
 
 
 def test_a_plugin_cannot_take_a_builtin_name_or_the_reference(installed):
+    """The plug-in's "mujoco" and "reference" are ignored, and a warning
+    says so, naming the plug-in's distribution and which one is used."""
     code = textwrap.dedent("""
         from mechval.engines import registry
         print(registry.targets()["mujoco"])
         print(type(registry.adapter("reference")).__name__, "reference" in registry.engine_names())
     """)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         env={**os.environ, "PYTHONPATH": str(installed)}, check=True).stdout
-    assert out.split("\n")[:2] == [registry.ADAPTERS["mujoco"], "ReferenceAdapter False"]
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(installed)}, check=True)
+    assert run.stdout.split("\n")[:2] == [MUJOCO, "ReferenceAdapter False"]
+    assert ("mechval.engines: 'mujoco' = 'tiny_mechval_engine:TinyAdapter' of tiny-mechval-engine 0.0.1 is "
+            f"ignored: mechval's built-in engine, {MUJOCO!r}, has that name and is used") in run.stderr
+    assert ("'reference' = 'tiny_mechval_engine:TinyAdapter' of tiny-mechval-engine 0.0.1 is ignored: "
+            "'reference' is mechval's analytic reference") in run.stderr
+    listing = mechval(installed, "list")
+    said = [line for line in listing.stderr.splitlines() if line.startswith("mechval: warning: ")]
+    assert listing.returncode == 0 and len(said) == 2 and "'mujoco'" in said[0] and "is used" in said[0], said
 
 
-def test_without_plugins_only_builtins():
-    assert registry.engine_names()[:len(registry.ENGINE_NAMES)] == registry.ENGINE_NAMES
+def test_the_builtins_are_mechvals_own_entry_points(monkeypatch):
+    """mechval registers its engines as a plug-in does: its distribution's
+    `mechval.engines` entry points are the built-ins, first, and with no
+    entry point found there is no engine but the reference."""
+    own = [e for e in importlib.metadata.distribution("mechval").entry_points if e.group == registry.ENTRY_POINT_GROUP]
+    assert {e.name: e.value for e in own} == {"mujoco": MUJOCO, "pybullet": "mechval.engines.pybullet:PybulletAdapter",
+                                             "exudyn": "mechval.engines.exudyn:ExudynAdapter"}
+    assert registry.engine_names()[:len(ENGINES)] == ENGINES == tuple(e.name for e in own)
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda **_: [])
+    registry.targets.cache_clear()
+    try:
+        assert registry.engine_names() == ()
+        assert type(registry.adapter("reference")).__name__ == "ReferenceAdapter"
+        with pytest.raises(registry.UnknownEngine, match="'mujoco'"):
+            registry.adapter("mujoco")
+    finally:
+        monkeypatch.undo()
+        registry.targets.cache_clear()
 
 
 def test_a_bug_in_an_adapter_module_is_not_unavailability(monkeypatch, tmp_path):
@@ -109,6 +138,7 @@ def test_a_bug_in_an_adapter_module_is_not_unavailability(monkeypatch, tmp_path)
     package.mkdir()
     (package / "__init__.py").write_text("from buggy_adapter_pkg import no_such_module\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, "buggy": "buggy_adapter_pkg:Adapter"})
+    targets = {**registry.targets(), "buggy": "buggy_adapter_pkg:Adapter"}
+    monkeypatch.setattr(registry, "targets", lambda: targets)
     with pytest.raises(ImportError):
         registry.adapter_class("buggy")

@@ -17,15 +17,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fake_engines import FAKES
+import page_codes
+from fake_engines import FAKES, registered
 from mechval.engines import registry
-from mechval.reference import simulate_reference
+from mechval.harness.simulate import simulate
 from mechval.outcome import Outcome, Task
 from mechval.reports import build, plots
 from mechval.harness.runner import discrepancies, run_tasks, tasks_for
 from mechval.scenarios import parse
 from mechval.signals import Signals
-from scenario_data import slider_crank
+from mechval.testing.scenes import slider_crank
 
 HOSTILE = ('Slider <b>bold</b> & <script>document.title="pwned"</script> "quoted" '
            '<img src=x onerror="document.title=\'pwned\'">')
@@ -37,7 +38,7 @@ FORCE_REASON = "the fake's forces are 0.1 % high <on purpose> & known"
 
 @pytest.fixture
 def fakes(monkeypatch):
-    monkeypatch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    monkeypatch.setattr(registry, "targets", registered())
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +50,7 @@ def scene():
 
 def run_fakes(scene, engines, timeout=30.0):
     outcomes = run_tasks(tasks_for([scene], engines), workers=2, timeout=timeout)
-    references = {scene.name: simulate_reference(scene)}
+    references = {scene.name: simulate(scene, "reference")}
     return outcomes, references, discrepancies(outcomes, references)
 
 
@@ -86,8 +87,8 @@ def report(tmp_path_factory, scene):
     from _pytest.monkeypatch import MonkeyPatch
     patch = MonkeyPatch()
     # "mujoco" stands in for an engine whose [engines.NAME] table overrides bounds.
-    patch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES, "mujoco": FAKES["spiking"],
-                                         HOSTILE_ENGINE: FAKES["faithful"]})
+    patch.setattr(registry, "targets", registered({**FAKES, "mujoco": FAKES["spiking"],
+                                         HOSTILE_ENGINE: FAKES["faithful"]}))
     try:
         outcomes, references, records = run_fakes(scene, ["faithful", "nonfinite", "raising", "spiking", "mujoco",
                                                           HOSTILE_ENGINE])
@@ -143,7 +144,7 @@ def test_failing_scenarios_come_first_and_open(tmp_path):
     summary-matrix cells link to that scenario's records of that run."""
     good = parse(slider_crank(name="a-passes", time={"end": 0.2, "samples": 21}), "a.toml")
     bad = parse(slider_crank(name="b-fails", time={"end": 0.2, "samples": 21}), "b.toml")
-    references = {s.name: simulate_reference(s) for s in (good, bad)}
+    references = {s.name: simulate(s, "reference") for s in (good, bad)}
     spiked = references["b-fails"].frame.copy()
     spiked.loc[10, "F32x"] += 1.0
     outcomes = [Outcome(Task(good, "faithful"), references["a-passes"], wall_time=0.1),
@@ -179,30 +180,30 @@ def test_display_thinning_keeps_a_single_sample_spike():
 def test_display_codes_round_trip_to_their_resolution():
     values = np.array([0.0, 1e-3, -2.5, np.nan, 7.0, 3.25, -1e-9])
     codes, lo, hi = plots.linear_codes(values)
-    back = plots.linear_values(plots.decode_stream(plots.encode_stream(codes)), lo, hi)
+    back = page_codes.linear_values(page_codes.decode_stream(plots.encode_stream(codes)), lo, hi)
     assert np.isnan(back[3]) and np.all(np.abs(np.delete(back - values, 3)) <= (hi - lo) / 65534 / 2 + 1e-15)
     codes, lo, hi = plots.log_codes(values)
-    back = plots.log_values(plots.decode_stream(plots.encode_stream(codes)), lo, hi)
+    back = page_codes.log_values(page_codes.decode_stream(plots.encode_stream(codes)), lo, hi)
     assert np.isnan(back[3]) and back[0] == 0.0
     finite = np.isfinite(values) & (values != 0)
     np.testing.assert_allclose(back[finite], values[finite], rtol=10 ** (plots.LOG_DECADES / 32766 / 2) - 1)
-    assert plots.log_values(plots.log_codes(np.array([1.0, 1e-25]))[0], 0.0, 0.0)[1] == 0.0  # below the range
+    assert page_codes.log_values(plots.log_codes(np.array([1.0, 1e-25]))[0], 0.0, 0.0)[1] == 0.0  # below the range
 
 
 def test_page_data_keeps_a_spike_of_a_long_run(scene):
     """A run long enough to be thinned for display: the spike of one sample
     in one engine's error survives into the page's data."""
     long = parse(slider_crank(time={"end": 2.0, "samples": 20_001}), "long.toml")
-    reference = simulate_reference(long)
+    reference = simulate(long, "reference")
     frame = reference.frame.copy()
     frame["F32x"] += 1e-6 * np.abs(frame["F32x"]).max()
     frame.loc[12_345, "F32x"] += 0.5
     engine = Signals(frame, "spiky")
     data = plots.signal_data(reference, {"spiky": engine}, {}, plots.colours(["spiky"]))
-    codes = plots.decode_stream(data["stream"])
+    codes = page_codes.decode_stream(data["stream"])
     trace = data["runs"][0]["traces"]["F32x"]
     start, count = trace["error"]["codes"]
-    error = plots.log_values(codes[start:start + count], *trace["error"]["log"])
+    error = page_codes.log_values(codes[start:start + count], *trace["error"]["log"])
     start, count = trace["samples"]["codes"]
     at = np.cumsum(codes[start:start + count])
     assert count < 4 * plots.DISPLAY_WINDOWS + 2 and at[np.argmax(error)] == 12_345
@@ -213,7 +214,7 @@ def test_interrupted_report_leaves_nothing(tmp_path, scene, monkeypatch):
     def broken(*args, **kwargs):
         raise KeyboardInterrupt
     monkeypatch.setattr(build.plots, "signal_data", broken)
-    reference = simulate_reference(scene)
+    reference = simulate(scene, "reference")
     with pytest.raises(KeyboardInterrupt):
         build.write_report(tmp_path / "run", [scene], {scene.name: reference}, [], discrepancies([], {}))
     assert list(tmp_path.iterdir()) == []
@@ -301,7 +302,7 @@ def test_report_in_a_real_browser(report):
     assert errors == [] and requests == [(out / "index.html").as_uri()]
     assert "pwned" not in title
     assert description == HOSTILE and HOSTILE_ENGINE in headers
-    reference = simulate_reference(parse(slider_crank(time={"end": 0.5, "samples": 51}), "x"))["F12y"]
+    reference = simulate(parse(slider_crank(time={"end": 0.5, "samples": 51}), "x"), "reference")["F12y"]
     assert len(drawn_reference) == len(reference)        # F12y is the 8th signal; short runs are not thinned
     np.testing.assert_allclose(drawn_reference, reference, rtol=0, atol=np.ptp(reference) / 65534)
     assert before[0] == 17 and before[1] >= 17 and after == [0, 0]      # 17 signals; errors add bound lines

@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 
 import dynamic_mechanisms as dm
-from fake_engines import FAKES
+import page_codes
+from fake_engines import registered
 from mechval.compare import COLUMNS
 from mechval.dynamics import RTOL
 from mechval.engines import registry
@@ -22,7 +23,7 @@ from mechval.reference import ReferenceAdapter
 from mechval.reports import build, plots
 from mechval.scenarios import parse
 from mechval.signals import Signals
-from scenario_data import slider_crank
+from mechval.testing.scenes import slider_crank
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
@@ -36,10 +37,10 @@ def free_fourbar_reference(samples: int = 101) -> Signals:
 
 
 def decoded(data: dict, entry: dict, kind: str) -> np.ndarray:
-    codes = plots.decode_stream(data["stream"])
+    codes = page_codes.decode_stream(data["stream"])
     start, count = entry["codes"]
     values = codes[start:start + count]
-    return plots.linear_values(values, *entry["lin"]) if kind == "lin" else plots.log_values(values, *entry["log"])
+    return page_codes.linear_values(values, *entry["lin"]) if kind == "lin" else page_codes.log_values(values, *entry["log"])
 
 
 def test_energy_data_decodes_to_each_runs_energy_and_drift():
@@ -77,7 +78,7 @@ def test_summary_and_page_state_the_reference_integrator_and_tolerance():
 def report(tmp_path_factory):
     from _pytest.monkeypatch import MonkeyPatch
     patch = MonkeyPatch()
-    patch.setattr(registry, "ADAPTERS", {**registry.ADAPTERS, **FAKES})
+    patch.setattr(registry, "targets", registered())
     scene = parse(slider_crank(time={"end": 0.5, "samples": 51}), "energy.toml")
     try:
         outcomes = run_tasks(tasks_for([scene], ["faithful"]), workers=1, timeout=30.0)

@@ -13,10 +13,10 @@ import pytest
 from mechval.adapter import RunInfo
 from mechval.harness.runner import discrepancies
 from mechval.outcome import Outcome, Task
-from mechval.reference import simulate_reference
+from mechval.harness.simulate import simulate
 from mechval.reports import build, runs
 from mechval.scenarios import parse
-from scenario_data import slider_crank
+from mechval.testing.scenes import slider_crank
 
 #: Settings as an adapter hands them over (engines/exudyn.py's keys): an
 #: unrounded step (1/46000 s) and a force-scaled tolerance.
@@ -33,7 +33,7 @@ def page(tmp_path_factory):
     """A report of three runs of one engine (two settings, the second with
     a time step of 2e-05 s) and one failed run."""
     scene = parse(slider_crank(time={"end": 0.2, "samples": 21}), "a.toml")
-    reference = simulate_reference(scene)
+    reference = simulate(scene, "reference")
     ran = replace(reference, source="exudyn", version="1.13.6", settings=SETTINGS, info=INFO)
     fine = replace(ran, settings={**SETTINGS, "timestep": 2e-05, "solver": "index3"},
                    info=replace(INFO, steps=10011, build_time_s=0.011396794999996018, wall_time_s=0.1997929610000142,

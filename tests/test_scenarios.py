@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import BUILTIN
-from mechval.engines.registry import ENGINE_NAMES
+from conftest import BUILTIN, ENGINES
 from mechval.scenario import ScenarioError
 from mechval.scenarios import load, parse
-from scenario_data import fourbar, slider_crank
+from mechval.testing.scenes import fourbar, slider_crank
 from twins import twin_document
 
 
@@ -109,7 +108,7 @@ BAD = [
 @pytest.mark.parametrize("data,key,reason", BAD, ids=[b[1] + ":" + b[2] for b in BAD])
 def test_bad_input_refused(data, key, reason):
     with pytest.raises(ScenarioError) as info:
-        parse(data, "bad.toml", ENGINE_NAMES)
+        parse(data, "bad.toml", ENGINES)
     assert info.value.source == "bad.toml"
     assert info.value.key == key
     assert reason in info.value.reason

@@ -2,7 +2,7 @@
 
 1. At the default setting, on every case of tests/dynamic_mechanisms.py
    (CASES): the worst ratio of an error to its default bound against the
-   forward-dynamics reference (tests/contract.py `dynamic_errors`), the
+   forward-dynamics reference (`mechval.testing.contract.dynamic_errors`), the
    worst angle error (rad) and relative reaction error, the step and the
    wall time of the Exudyn run (default_settings, which integrates the
    reference for the step rule, not counted). A case Exudyn cannot run is
@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 import andrews as A
 import dynamic_mechanisms as dm
-from contract import ANGLE, FORCE, dynamic_errors
+from mechval.testing.contract import ANGLE, FORCE, dynamic_errors
 from mechval.dynamics import RTOL, raw_dynamics
 from mechval.energy import kinetic_energy, potential_energy
 from mechval.engines.registry import adapter

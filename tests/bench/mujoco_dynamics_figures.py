@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 import andrews as A  # noqa: E402
 import dynamic_mechanisms as dm  # noqa: E402
-from contract import ANGLE, dynamic_errors  # noqa: E402
+from mechval.testing.contract import ANGLE, dynamic_errors  # noqa: E402
 from mechval.dynamics import raw_dynamics  # noqa: E402
 from mechval.energy import kinetic_energy, potential_energy  # noqa: E402
 from mechval.engines.mujoco import MujocoAdapter  # noqa: E402

@@ -19,15 +19,15 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 from mechval.compare import compare  # noqa: E402
-from mechval.engines.registry import ENGINE_NAMES  # noqa: E402
+from mechval.engines.registry import engine_names  # noqa: E402
 from mechval.harness.simulate import simulate  # noqa: E402
 from planar_scenes import SCENES, scene  # noqa: E402
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--engine", action="append", choices=ENGINE_NAMES)
-    engines = parser.parse_args().engine or list(ENGINE_NAMES)
+    parser.add_argument("--engine", action="append", choices=engine_names())
+    engines = parser.parse_args().engine or list(engine_names())
     for engine in engines:
         for name in SCENES:
             scenario = scene(name)

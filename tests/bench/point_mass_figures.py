@@ -18,11 +18,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from test_engines import POINT_MASS_SCENES  # noqa: E402
 
 from mechval.compare import compare  # noqa: E402
-from mechval.engines.registry import ENGINE_NAMES, EngineUnavailable, adapter  # noqa: E402
-from mechval.reference import simulate_reference  # noqa: E402
+from mechval.engines.registry import EngineUnavailable, adapter, engine_names  # noqa: E402
 from mechval.scenarios import parse  # noqa: E402
 from mechval.harness.simulate import simulate
-from scenario_data import merge  # noqa: E402
+from mechval.testing.scenes import merge  # noqa: E402
 
 
 def worst_by_class(records) -> str:
@@ -36,8 +35,8 @@ def worst_by_class(records) -> str:
 def main() -> None:
     for name, data in POINT_MASS_SCENES.items():
         scenario = parse(data, f"{name}.toml")
-        reference = simulate_reference(scenario)
-        for engine in ENGINE_NAMES:
+        reference = simulate(scenario, "reference")
+        for engine in engine_names():
             try:
                 result = simulate(scenario, adapter(engine))
             except EngineUnavailable as exc:
@@ -52,7 +51,7 @@ def main() -> None:
         data = merge(block, {"geometry": {k: v * scale for k, v in g.items()},
                              "mass": {k: v * scale for k, v in m.items()}})
         scenario = parse(data, "block.toml")
-        records = compare(simulate_reference(scenario), simulate(scenario, adapter("mujoco"), {"mode": "inverse"}),
+        records = compare(simulate(scenario, "reference"), simulate(scenario, adapter("mujoco"), {"mode": "inverse"}),
                           scenario.tolerance).set_index("signal")
         forces = records[records["class"].isin(["force", "torque"])]["relative_error"]
         print(f"mujoco inverse, block scale {scale:g}: M43 {records.loc['M43', 'max_error']:.2g} N·m "

@@ -7,7 +7,7 @@ its default setting, against the forward-dynamics reference
 1. Every case of tests/dynamic_mechanisms.py CASES (101 samples over the
    span the reference's tests use): the default step, wall time, the
    largest closure gap, and the worst ratios error / default bound of
-   tests/contract.py `dynamic_errors` (angles 1e-3 rad and positions
+   `mechval.testing.contract.dynamic_errors` (angles 1e-3 rad and positions
    1e-4 m absolute, reactions and efforts 1e-2 of the reference column's
    peak; ≤ 1 passes). A reaction the reference leaves indeterminate
    (the redundant parallelogram's pins) has no peak and is not compared.
@@ -36,12 +36,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import andrews as A  # noqa: E402
 import dynamic_mechanisms as dm  # noqa: E402
-from contract import DYNAMIC, dynamic_errors  # noqa: E402
+from mechval.testing.contract import DYNAMIC, dynamic_errors  # noqa: E402
 from mechval.dynamics import raw_dynamics  # noqa: E402
 from mechval.energy import kinetic_energy, potential_energy  # noqa: E402
 from mechval.engines.registry import adapter  # noqa: E402
 
-#: The span (s) of each case, as tests/contract.py and tests/test_dynamics.py run them.
+#: The span (s) of each case, as mechval.testing.contract and tests/test_dynamics.py run them.
 SPANS = {**DYNAMIC, "free-five-bar": 1.0, "half-driven-five-bar": 1.0, "free-parallelogram": 2.0,
          "motored-andrews": A.T1}
 SAMPLES = 101

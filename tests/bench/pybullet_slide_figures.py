@@ -23,7 +23,6 @@ from mechval.compare import compare  # noqa: E402
 from mechval.engines import pybullet_run as adapter_module  # noqa: E402
 from mechval.engines.registry import adapter  # noqa: E402
 from mechval.linkages import build_mechanism  # noqa: E402
-from mechval.reference import simulate_reference  # noqa: E402
 from mechval.harness.simulate import simulate
 from test_linkages_more import SCENES  # noqa: E402
 
@@ -40,7 +39,7 @@ def ratios(scenario, overrides, sensor: bool):
         result = simulate(scenario, adapter("pybullet"), overrides)
     finally:
         adapter_module.Stepper.derived_reactions = derive
-    records = compare(simulate_reference(scenario), result, scenario.tolerance, scenario=scenario.name)
+    records = compare(simulate(scenario, "reference"), result, scenario.tolerance, scenario=scenario.name)
     records = records[records["class"].isin(["force", "torque"])].set_index("signal")["ratio"]
     return records, result.info.facts["timestep_used"]
 

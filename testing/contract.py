@@ -1,18 +1,22 @@
 """The adapter contract as one test suite that every engine's tests subclass
-(as xarray's backend tests do):
+(as xarray's backend tests do), in mechval's own tests and in a plug-in's:
+
+    from mechval.testing import AdapterContract
 
     class TestContract(AdapterContract):
         engine = "mujoco"
 
 A new adapter (Drake, MuJoCo Warp, a plug-in from the `mechval.engines`
-entry-point group) gets the same checks by subclassing it once. Each check
+entry-point group) gets the same checks by subclassing it once, against an
+installed mechval (docs/adapters.md, "Testing an adapter"). Each check
 stays short: a few hundred samples at most.
 
 Expected values are independent of the engine: signs from physics stated
 in each test (power balance, statics), the rest from the analytic
-reference, which passes the same contract (tests/test_reference_contract.py).
-An adapter without a time step or without a model to audit says why in a
-class attribute, and the tests that need one skip with that reason.
+reference, which passes the same contract (mechval's
+tests/test_reference_contract.py). An adapter without a time step, without
+a model to audit or without forward dynamics says why in a class
+attribute, and the tests that need one skip with that reason.
 """
 
 from __future__ import annotations
@@ -23,18 +27,18 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-import dynamic_mechanisms as dm
-from conftest import engine_or_skip
 from mechval.audit import failures, format_audit
 from mechval.compare import HEALTH_BOUNDS, compare
 from mechval.dynamics import raw_dynamics
+from mechval.harness.simulate import simulate
 from mechval.linkages import build_mechanism
-from mechval.reference import simulate_reference
 from mechval.scenario import ScenarioError
 from mechval.scenarios import parse
 from mechval.signals import canonical_signals, signal_names
-from mechval.harness.simulate import simulate
-from scenario_data import fourbar, slider_crank
+
+from . import mechanisms as dm
+from .comparison import assert_within_tolerance, compare_with_reference, engine_or_skip
+from .scenes import fourbar, slider_crank
 
 G = 9.81
 #: A slotted lever (a slide between two moving links) and a four-bar (a
@@ -54,7 +58,7 @@ FREE_LOOP = fourbar(effects=None, time={"end": 1.0, "samples": 101}, name="contr
 DAMPED_LOOP = fourbar(effects={"gravity": [0.0, -G], "damping": {"O2": 0.5, "A": 0.2, "B": 0.3, "O4": 0.4}},
                       time={"end": 1.0, "samples": 101}, name="contract-fourbar-damped")
 MECHANISMS = pytest.mark.parametrize("data", [CLOSED_LOOP, MOVING_SLIDE], ids=["closed-loop", "moving-slide"])
-#: Torque-driven and free mechanisms (tests/dynamic_mechanisms.py) and how
+#: Torque-driven and free mechanisms (`mechval.testing.mechanisms`) and how
 #: long each runs (s): a pendulum and a crank under a torque law with closed
 #: forms, the seed four-bar falling from rest, a motored slider-crank with a
 #: spring-damper, joint dampers and a body torque.
@@ -173,7 +177,7 @@ class AdapterContract:
         finite = np.isfinite(raw.frame.to_numpy(dtype=float))
         assert all(finite[:, k].all() or column in raw.missing for k, column in enumerate(raw.frame.columns))
         # The bounds: the reference compared with itself over the whole run.
-        reference = simulate_reference(scenario)
+        reference = simulate(scenario, "reference")
         bounds = compare(reference, reference, scenario.tolerance_for(self.engine)).set_index("signal")["bound"]
         result = canonical_signals(mechanism, raw.frame, self.engine, missing=raw.missing)
         errors = {name: abs(result[name][0] - reference[name][0]) for name in signal_names(data["mechanism"])[1:]
@@ -238,10 +242,7 @@ class AdapterContract:
     @pytest.mark.parametrize("data", [CLOSED_LOOP, MOVING_SLIDE], ids=["closed-loop", "moving-slide"])
     def test_meets_the_default_tolerances(self, adapter, data):
         scenario = parse(data, f"{data['name']}.toml")
-        records = compare(simulate_reference(scenario), simulate(scenario, adapter),
-                          scenario.tolerance_for(self.engine), scenario.name, self.engine)
-        failed = records[records["verdict"] == "fail"]
-        assert failed.empty, failed[["signal", "max_error", "bound", "reason"]].to_string()
+        assert_within_tolerance(compare_with_reference(scenario, adapter).records)
 
     # -- no unrequested effects ------------------------------------------------
 
@@ -315,7 +316,7 @@ class AdapterContract:
             assert any(item.startswith("torque law") for item in table["item"])
 
     def test_a_torque_law_is_an_applied_joint_torque(self, adapter):
-        """The crank under T(t) = T0 + a·sin(2πft + φ) (tests/dynamic_mechanisms.py
+        """The crank under T(t) = T0 + a·sin(2πft + φ) (`mechval.testing.mechanisms`
         SPIN): its effort column is the law itself, not a servo's
         response, and its motion follows the closed form."""
         mech, times, frame = self.run_dynamic(adapter, "spinning-crank")

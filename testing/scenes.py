@@ -1,4 +1,9 @@
-"""Scenario dictionaries for tests (parsed with mechval.scenarios.parse)."""
+"""Scenario dictionaries for tests, parsed with `mechval.scenarios.parse`:
+a four-bar and a slider-crank, each changed by keyword (`merge`). The
+contract suite builds its scenes from them; tests of an adapter may too:
+
+    parse(fourbar(time={"end": 1.0, "samples": 101}), "short.toml")
+"""
 
 from __future__ import annotations
 

@@ -39,7 +39,7 @@ import json
 import os
 import re
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import MISSING, dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -155,16 +155,50 @@ def obtained_path(path: Path) -> Path:
 
 
 def scenario_hash(scenario: Scenario, engine: str) -> str:
-    """sha256 of what determines an engine's signals: the scenario's physics,
-    drive, samples and this engine's settings table. Name, description, tags,
-    tolerances, comments and the file's path are left out, so that a reworded
-    scene or a new tolerance is not reported as a changed scenario."""
-    content = asdict(scenario)
-    for key in ("name", "description", "tags", "tolerance", "source", "engines"):
-        del content[key]
-    content["engine_settings"] = scenario.settings_for(engine)
-    text = json.dumps(content, sort_keys=True, default=repr)
+    """sha256 of what determines an engine's signals: the scene's physics
+    (bodies, joints, drives, force elements, torque laws, initial values,
+    gravity, assembly pose), the closed form's kind (it names the signals),
+    the samples and this engine's settings table (`physics`). Name,
+    description, tags, tolerances, comments and the file's path are left
+    out, so that a reworded scene or a new tolerance is not reported as a
+    changed scenario; so is how mechval holds a scene, so that a
+    restructured model or a new field left at its default keeps every
+    recorded baseline's hash."""
+    content = {"scene": physics(scenario.scene), "kind": scenario.mechanism,
+               "time": physics(scenario.time), "engine_settings": physics(dict(scenario.settings_for(engine)))}
+    text = json.dumps(content, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def physics(value: Any) -> Any:
+    """`value` as plain JSON data: a dataclass as its compared fields that
+    differ from their defaults (by name), sequences as lists, mappings with
+    text keys, floats by repr (exact)."""
+    if is_dataclass(value) and not isinstance(value, type):
+        content = {}
+        for f in fields(value):
+            item = getattr(value, f.name)
+            default = f.default if f.default is not MISSING else (
+                f.default_factory() if f.default_factory is not MISSING else MISSING)
+            if f.compare and not (default is not MISSING and _same(item, default)):
+                content[f.name] = physics(item)
+        return content
+    if isinstance(value, Mapping):
+        return {str(k): physics(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [physics(v) for v in value]
+    if isinstance(value, float):
+        return repr(value)
+    if value is None or isinstance(value, (bool, int, str)):
+        return value
+    return repr(value)
+
+
+def _same(a: Any, b: Any) -> bool:
+    try:
+        return bool(a == b)
+    except ValueError:      # arrays
+        return False
 
 
 def metadata(scenario: Scenario, setting: str, overrides: Mapping[str, Any], signals: Signals,

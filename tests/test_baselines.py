@@ -187,8 +187,9 @@ def test_thresholds_tell_apart_what_they_must_on_the_committed_baselines():
         # 2.9e7 times the threshold of the signal it moves most).
         rows = bl.compare_to_baseline(b, a, sensitivity=bl.load(after).sensitivity).dropna(subset=["max_abs_diff"])
         assert (rows["max_abs_diff"] / rows["threshold"]).max() >= 1e4, before
-    laws = {p: builtin_scenario(p.parent.name).drive for p in COMMITTED}     # None: torque-driven or free
-    steady = [p for p, law in laws.items() if law is not None and law.alpha == 0.0 and law.omega0 != 0.0]
+    scenes = {p: builtin_scenario(p.parent.name).scene for p in COMMITTED}
+    laws = {p: scene.drives[0].law for p, scene in scenes.items() if scene.drives and not scene.forward_dynamics}
+    steady = [p for p, law in laws.items() if law.alpha == 0.0 and law.omega0 != 0.0]
     assert steady
     for path in steady:
         residue = float(np.abs(bl.load(path).signals[crank_alpha(builtin_scenario(path.parent.name))]).max())
@@ -215,10 +216,35 @@ def test_every_committed_baseline_of_an_installed_version_records_its_inputs_and
         base = bl.load(path)
         feed, why = base.feed()
         assert feed is not None and len(feed.reads) >= 1, (path, why)
+        # A restructured model keeps the hash (`physics`), or no check could feed these.
+        scenario = builtin_scenario(path.parent.name)
+        assert base.meta["scenario_hash"] == bl.scenario_hash(scenario, base.meta["engine"]), path
         assert set(base.sensitivity) == set(base.signals.frame.columns), path
         peaks = class_peaks(base.signals)
         worst = max(bl.SENSITIVITY_MARGIN * base.sensitivity[c] / peaks[c] for c in peaks if peaks[c] > 0)
         assert worst < 1e-4, (path, worst)
+
+
+def test_the_scenario_hash_is_of_physics_not_of_how_mechval_holds_it():
+    """A field added with its default (as a spatial extension adds them)
+    and a reworded scene keep the hash; a change of physics in the last
+    digits, of the samples or of an engine setting changes it."""
+    scenario = builtin_scenario(CLI_SCENARIO)
+    reference = bl.scenario_hash(scenario, "mujoco")
+    body = scenario.scene.bodies[0]
+
+    @dataclasses.dataclass(frozen=True)
+    class ExtendedBody(type(body)):
+        ixx: float = 0.0        # a new field at its default
+    extended = dataclasses.replace(scenario.scene, bodies=(ExtendedBody(**dataclasses.asdict(body)),
+                                                           *scenario.scene.bodies[1:]))
+    assert bl.scenario_hash(dataclasses.replace(scenario, scene=extended), "mujoco") == reference
+    assert bl.scenario_hash(dataclasses.replace(scenario, description="other words", tags=()), "mujoco") == reference
+    heavier = dataclasses.replace(body, mass=body.mass * (1 + 1e-15))
+    changed = [dataclasses.replace(scenario, scene=dataclasses.replace(scenario.scene, bodies=(
+                   heavier, *scenario.scene.bodies[1:]))),
+               dataclasses.replace(scenario, time=dataclasses.replace(scenario.time, samples=scenario.time.samples + 1))]
+    assert all(bl.scenario_hash(c, "mujoco") != reference for c in changed)
 
 
 def test_changed_missing_values_samples_or_columns_are_regressions(stored):

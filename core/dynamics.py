@@ -40,8 +40,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections import OrderedDict
-from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -53,8 +52,8 @@ from .initial_state import SINGULAR_CONDITION, consistent_state, coordinate_name
 from .mechanism import BodyPose, InitialValue, Mechanism
 from .planar_constraints import MechanismError
 from .planar_linear import settled
-from .planar_positions import Nodes, Structure
-from .planar_solver import CHUNK, UNIQUE_TOL, PlanarSolver, default_pose
+from .planar_positions import Nodes
+from .planar_solver import CHUNK, UNIQUE_TOL, PlanarSolver, Solution, default_pose
 
 #: The integrator's relative tolerance by default. It bounds each step's
 #: error; over a run the steps' errors add up, about in proportion to the
@@ -103,17 +102,6 @@ class Overflows(StoppedAt):
 class NoInertia(MechanismError):
     """The mass matrix along the stated coordinates is singular: a refusal
     of the scene itself, not a stop of the integration."""
-
-
-@dataclass(frozen=True)
-class DynamicSolution:
-    """Raw columns (mechval.mechanism names), reasons for missing columns,
-    the mechanism's structure and facts about the integration."""
-
-    frame: pd.DataFrame
-    missing: Mapping[str, str]
-    structure: Structure
-    facts: Mapping[str, Any] = field(default_factory=dict)
 
 
 def check_torque_laws(mech: Mechanism) -> None:
@@ -343,7 +331,7 @@ class ForwardDynamics:
                 done = end
         return np.array(instants), np.array(states).T, y
 
-    def solve(self, t: np.ndarray, rtol: float = RTOL, method: str = "DOP853") -> DynamicSolution:
+    def solve(self, t: np.ndarray, rtol: float = RTOL, method: str = "DOP853") -> Solution:
         """Raw motion and reaction columns at instants t (nondecreasing,
         from the initial instant on). Radau, of order 5, needs many times
         DOP853's evaluations at RTOL: give it a looser rtol."""
@@ -393,7 +381,7 @@ class ForwardDynamics:
                  "atol": [float(x) for x in atol], "steps": steps, "evaluations": evaluations,
                  "integration_time_s": integration, "mobility": start.structure.mobility,
                  "redundant_constraints": start.structure.redundant, **measured}
-        return DynamicSolution(frame, missing, start.structure, facts)
+        return Solution(frame, missing, start.structure, facts)
 
     # -- output ---------------------------------------------------------------------------------
 
@@ -447,7 +435,7 @@ _runs: OrderedDict = OrderedDict()
 
 def raw_dynamics(mech: Mechanism, t: np.ndarray, initial: Sequence[InitialValue] | None = None,
                  pose: Mapping[str, BodyPose] | None = None, rtol: float = RTOL,
-                 method: str = "DOP853") -> DynamicSolution:
+                 method: str = "DOP853") -> Solution:
     """The forward-dynamics reference's raw columns of `mech` at instants t,
     from the stated initial values (the mechanism's own unless given) at t[0];
     the last runs are kept, up to CACHED_BYTES (each caller gets its own frame)."""

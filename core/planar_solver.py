@@ -75,9 +75,10 @@ METHOD = "absolute coordinates, Newton continuation, constraint multipliers (Nik
 
 
 @dataclass(frozen=True)
-class PlanarSolution:
-    """Raw columns (mechval.mechanism names), reasons for missing columns,
-    the mechanism's structure and facts about the solve."""
+class Solution:
+    """A reference solution, prescribed (`PlanarSolver`) or integrated
+    (`mechval.dynamics`): raw columns (mechval.mechanism names), reasons for
+    missing columns, the mechanism's structure and facts about the solve."""
 
     frame: pd.DataFrame
     missing: Mapping[str, str]
@@ -192,7 +193,7 @@ class PlanarSolver:
         march(self.c, self.scaling, q0, t0, t_end, self._rates, delta_target=CHECK_DELTA)
         return found
 
-    def solve(self, t: np.ndarray, pose: Mapping[str, BodyPose] | None = None) -> PlanarSolution:
+    def solve(self, t: np.ndarray, pose: Mapping[str, BodyPose] | None = None) -> Solution:
         """Raw motion and reaction columns at instants t (nondecreasing)."""
         t = np.asarray(t, dtype=float)
         if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) < 0):
@@ -231,7 +232,7 @@ class PlanarSolver:
                  "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
                  "continuation_nodes": len(nodes.t)}
         frame = pd.DataFrame(table.T, columns=columns, copy=False)
-        return PlanarSolution(frame.assign(**resultants), missing, found, facts, condition)
+        return Solution(frame.assign(**resultants), missing, found, facts, condition)
 
     def _columns(self, out: Mapping[str, np.ndarray]) -> np.ndarray:
         """Motion of every body frame (origin O = G − R·com) and reactions."""
@@ -300,6 +301,6 @@ def redundant_constraints(mech: Mechanism, t0: float = 0.0) -> int:
     return redundant_joint_rows(c, Scaling(c, mechanism_size(mech)), default_pose(mech, t0), t0)
 
 
-def raw_planar(mech: Mechanism, t: np.ndarray, pose: Mapping[str, BodyPose] | None = None) -> PlanarSolution:
+def raw_planar(mech: Mechanism, t: np.ndarray, pose: Mapping[str, BodyPose] | None = None) -> Solution:
     """The general reference's raw columns of `mech` at instants t."""
     return PlanarSolver(mech).solve(t, pose)

@@ -408,15 +408,6 @@ def stored_versions(root: Path, engine: str, scenario: str, setting: str) -> lis
     return sorted(found, key=_version_key)
 
 
-def find(root: Path, engine: str, version: str, scenario: str, setting: str) -> Baseline | None:
-    """The baseline of the same engine version if stored, else of the newest
-    stored version of that engine, else None."""
-    versions = stored_versions(root, engine, scenario, setting)
-    if not versions:
-        return None
-    chosen = version if version in versions else versions[-1]
-    return load(baseline_path(root, engine, chosen, scenario, setting))
-
 
 def compare_to_baseline(stored: Signals, new: Signals, rtol: float = DEFAULT_RTOL,
                         signal_rtol: Mapping[str, float] | None = None,

@@ -269,14 +269,15 @@ def test_context_changes_name_version_settings_and_scenario(stored):
     assert bl.context_changes(meta, meta) == []
 
 
-def test_find_prefers_the_same_version_else_the_newest(stored, tmp_path):
+def test_stored_versions_are_ordered_as_releases(stored, tmp_path):
+    """`check` compares with the newest stored version when the installed
+    one has none: 3.10.0 is newer than 3.3.7, a hand-made name newest."""
     meta = stored.meta
-    for version in ("3.3.7", "3.10.0", "4.0.0"):
+    for version in ("3.3.7", "3.10.0", "4.0.0", "local-build"):
         bl.save(bl.baseline_path(tmp_path, "e", version, meta["scenario"], meta["setting"]), stored.signals, meta)
-    find = lambda version: bl.find(tmp_path, "e", version, meta["scenario"], meta["setting"]).path.parent.parent.name
-    assert find("3.3.7") == "3.3.7"
-    assert find("5.0") == "4.0.0"
-    assert bl.find(tmp_path, "other", "1.0", meta["scenario"], meta["setting"]) is None
+    assert bl.stored_versions(tmp_path, "e", meta["scenario"], meta["setting"]) == ["3.3.7", "3.10.0", "4.0.0",
+                                                                                    "local-build"]
+    assert bl.stored_versions(tmp_path, "other", meta["scenario"], meta["setting"]) == []
 
 
 def test_accuracy_change_says_improved_worsened_unchanged():

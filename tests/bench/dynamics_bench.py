@@ -88,8 +88,6 @@ def fall(args) -> None:
 def scenes(args) -> None:
     """Each built-in torque-driven or free scene file, as `mechval` runs it."""
     import tomllib
-    from mechval.linkages import build_mechanism
-    from mechval.reference import ReferenceAdapter
     from mechval.scenarios import builtin_names, builtin_path, load, parse
     print(f"Built-in torque-driven and free scenes through the reference adapter (best of {args.repeats})")
     for name in builtin_names():
@@ -100,28 +98,30 @@ def scenes(args) -> None:
             doc = tomllib.loads(builtin_path(name).read_text(encoding="utf-8"))
             doc["time"] = {"end": args.fall, "samples": args.samples}
             scenario = parse(doc, name)
-        mech, best, facts = build_mechanism(scenario), np.inf, {}
-        for _ in range(args.repeats):
-            dynamics._runs.clear()
-            start = time.perf_counter()
-            facts = ReferenceAdapter().run(mech, scenario.time.t, {}).info.facts
-            best = min(best, time.perf_counter() - start)
+        best, facts = best_reference_run(scenario, args.repeats)
         print(f"  {name:24s} 0–{scenario.time.end:g} s, {scenario.time.samples} samples: wall {best:.3f} s, "
               f"{facts['steps']} steps, {facts['evaluations']} evaluations, "
               f"{1e3 * facts['integration_time_s'] / max(facts['evaluations'], 1):.2f} ms per evaluation")
 
 
-def spun(args) -> None:
+def best_reference_run(scenario, repeats: int) -> tuple[float, dict]:
+    """The reference adapter's best wall time on the scenario over
+    `repeats` runs (the run cache cleared before each), and its facts."""
     from mechval.linkages import build_mechanism
     from mechval.reference import ReferenceAdapter
-    from test_dynamics_accuracy import spun_fourbar
-    scenario = spun_fourbar(2.2)
     mech, best, facts = build_mechanism(scenario), np.inf, {}
-    for _ in range(args.repeats):
+    for _ in range(repeats):
         dynamics._runs.clear()
         start = time.perf_counter()
         facts = ReferenceAdapter().run(mech, scenario.time.t, {}).info.facts
         best = min(best, time.perf_counter() - start)
+    return best, facts
+
+
+def spun(args) -> None:
+    from test_dynamics_accuracy import spun_fourbar
+    scenario = spun_fourbar(2.2)
+    best, facts = best_reference_run(scenario, args.repeats)
     print(f"  {'spun four-bar, 15 turns':24s} 0–{scenario.time.end:g} s, {scenario.time.samples} samples: wall {best:.3f} s, "
           f"{facts['steps']} steps, {facts['evaluations']} evaluations ({facts['evaluations'] / MAX_EVALUATIONS:.0%} of "
           f"the limit), {1e3 * facts['integration_time_s'] / max(facts['evaluations'], 1):.2f} ms per evaluation")

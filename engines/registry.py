@@ -163,12 +163,12 @@ def installed() -> dict[str, str]:
     for name, target in targets().items():
         try:
             library, distribution = _named_library(target) or _library_of(name)
-            if importlib.util.find_spec(library) is None:
+            if not _found(library):
                 raise EngineUnavailable(f"{name}: {library} is not installed")
             result[name] = f"{distribution} {importlib.metadata.version(distribution)}"
         except importlib.metadata.PackageNotFoundError:
             result[name] = f"not installed: {name}: no distribution {distribution!r} is installed"
-        except (EngineUnavailable, ImportError, ValueError) as exc:
+        except EngineUnavailable as exc:    # a bug in the adapter module is raised, as by `adapter`
             result[name] = f"not installed: {exc}"
     return result
 
@@ -176,3 +176,12 @@ def installed() -> dict[str, str]:
 def _library_of(name: str) -> tuple[str, str]:
     cls = adapter_class(name)
     return cls.library, cls.distribution
+
+
+def _found(library: str) -> bool:
+    """Whether `library` is on the path (a dotted name's parents are
+    imported to look, as Python's import does)."""
+    try:
+        return importlib.util.find_spec(library) is not None
+    except ModuleNotFoundError:         # a parent package missing
+        return False

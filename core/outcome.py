@@ -1,9 +1,11 @@
-"""What a comparison run is made of: a task (scenario × engine × setting)
-and its outcome (signals, or the reason there are none). The harness
-produces them; reports and tests read them."""
+"""What a comparison run or a cost sweep is made of: a task (scenario ×
+engine × setting, with its overrides and resolved settings) and its
+outcome (signals, or the reason there are none). The harness produces
+them; reports and tests read them."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -14,6 +16,9 @@ from .signals import Signals
 
 @dataclass(frozen=True)
 class Task:
+    """One engine run to make: a comparison run's (scenario × engine ×
+    variant) or one point of a cost sweep (× time step)."""
+
     scenario: Scenario
     engine: str
     setting: str = "default"
@@ -28,6 +33,10 @@ class Task:
     #: (`mechval.harness.plan`): the worker runs with them and derives
     #: nothing (None: derived by the worker).
     settings: Mapping[str, Any] | None = None
+    #: The time step a cost sweep's point sets (s; NaN: the engine's own).
+    step: float = math.nan
+    #: Whether a cost sweep's point is the engine's default setting.
+    default: bool = False
 
     @property
     def label(self) -> str:

@@ -13,14 +13,18 @@ first and keep their names: a plug-in that takes one (or "reference") is
 ignored with a warning that says which one is used.
 
 An engine is available when its adapter imports and the engine library it
-names (`EngineAdapter.library`, the library's own import name) imports.
+names (`EngineAdapter.library`, the library's own import name) imports;
+it is installed (`installed`, what `mechval list` shows) when that library
+is found on the path and its distribution has a version, neither imported.
 """
 
 from __future__ import annotations
 
+import ast
 import functools
 import importlib
 import importlib.metadata
+import importlib.util
 import warnings
 from typing import TYPE_CHECKING
 
@@ -122,3 +126,62 @@ def availability() -> dict[str, str]:
         except EngineUnavailable as exc:
             result[name] = str(exc)
     return result
+
+
+def _named_library(target: str) -> tuple[str, str] | None:
+    """The `library` and `distribution` an adapter class names as string
+    constants in its own body, read from its module's source without
+    importing it (None: not both named there, e.g. inherited)."""
+    module_name, _, class_name = target.partition(":")
+    try:
+        spec = importlib.util.find_spec(module_name)
+        source = spec.loader.get_source(module_name) if spec and spec.loader else None
+    except (ImportError, ValueError, AttributeError, OSError):
+        return None
+    if not source:
+        return None
+    named = {}
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.ClassDef) and node.name == class_name:
+            for line in node.body:
+                value = line.value if isinstance(line, (ast.Assign, ast.AnnAssign)) else None
+                names = line.targets if isinstance(line, ast.Assign) else [getattr(line, "target", None)]
+                if isinstance(value, ast.Constant) and isinstance(value.value, str):
+                    named.update({n.id: value.value for n in names if isinstance(n, ast.Name)})
+    return (named["library"], named["distribution"]) if {"library", "distribution"} <= named.keys() else None
+
+
+def installed() -> dict[str, str]:
+    """Engine name → its library's version if installed, else "not installed:
+    REASON". Installed: the library is found (`importlib.util.find_spec`)
+    and its distribution has a version (`importlib.metadata.version`),
+    neither imported, nor the adapter where its class names both in its
+    own body (`mechval list`, which must stay fast). Whether the library
+    imports (a broken installation) is checked where an engine is used
+    (`adapter`, `availability`)."""
+    result = {}
+    for name, target in targets().items():
+        try:
+            library, distribution = _named_library(target) or _library_of(name)
+            if not _found(library):
+                raise EngineUnavailable(f"{name}: {library} is not installed")
+            result[name] = f"{distribution} {importlib.metadata.version(distribution)}"
+        except importlib.metadata.PackageNotFoundError:
+            result[name] = f"not installed: {name}: no distribution {distribution!r} is installed"
+        except EngineUnavailable as exc:    # a bug in the adapter module is raised, as by `adapter`
+            result[name] = f"not installed: {exc}"
+    return result
+
+
+def _library_of(name: str) -> tuple[str, str]:
+    cls = adapter_class(name)
+    return cls.library, cls.distribution
+
+
+def _found(library: str) -> bool:
+    """Whether `library` is on the path (a dotted name's parents are
+    imported to look, as Python's import does)."""
+    try:
+        return importlib.util.find_spec(library) is not None
+    except ModuleNotFoundError:         # a parent package missing
+        return False

@@ -8,11 +8,12 @@ from __future__ import annotations
 import time
 from typing import Any, Iterable, Mapping
 
-from mechval.audit import AuditResult
+from mechval.audit import AuditResult, format_audit
 from mechval.engines.registry import adapter
 from mechval.scenario import Scenario
 
-from .plan import Plan, planned
+from .plan import Plan, planned, prepare
+from .preflight import chosen_engines, load_scenario
 
 
 def audit_scenario(scenario: Scenario | Plan, engine: str, overrides: Mapping[str, Any] | None = None) -> AuditResult:
@@ -40,3 +41,20 @@ def audit_all(scenarios: Iterable[Scenario | Plan], engines: Iterable[str]) -> l
     engines = list(engines)
     plans = (planned(scenario, engines) for scenario in scenarios)
     return [audit_scenario(plan, engine) for plan in plans for engine in engines]
+
+
+def audit_command(scenario_name: str, engines: list[str] | None) -> int:
+    """`mechval audit`: per engine, the verdict and the table of what its
+    model holds against the scene; exit status 1 when one differs."""
+    scenario = load_scenario(scenario_name)
+    engines = chosen_engines(engines)
+    plan = prepare(scenario, engines)
+    status = 0
+    for engine in engines:
+        result = audit_scenario(plan, engine)
+        verdict = result.error or (f"{result.failing} rows differ" if result.failing else "the model is the scene")
+        print(f"== {scenario.name} × {engine}: {verdict}")
+        if result.table is not None:
+            print(format_audit(result.table))
+        status = status or int(not result.ok)
+    return status

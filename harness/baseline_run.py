@@ -19,10 +19,12 @@ from mechval.outcome import Outcome, Task
 from mechval.reports.build import provenance
 from mechval.scenario import ScenarioError
 from mechval.scenarios import builtin_path
-from mechval.signals import Signals
+from mechval.signals import SIGNAL_CLASS, Signals
 
 from . import baseline as bl
+from .defaults import Limits
 from .plan import prepare
+from .preflight import UsageError, check_runs, check_writable, chosen_engines, chosen_scenarios, worker_count
 from .runner import references_for, run_tasks, simulate_task, tasks_for
 from .simulate import simulate
 
@@ -300,3 +302,34 @@ def feed_of(base: bl.Baseline, task: Task) -> tuple[Feed | None, str]:
 
 def _table(frame: pd.DataFrame, index: bool = False) -> str:
     return frame.to_string(index=index, float_format=lambda v: f"{v:.3g}", na_rep="")
+
+
+def parse_signal_rtol(items: list[str] | None) -> dict[str, float]:
+    """NAME=R pairs of --signal-rtol; NAME is a canonical signal (or t)."""
+    result = {}
+    for item in items or []:
+        name, _, value = item.partition("=")
+        if name not in SIGNAL_CLASS and name != "t":
+            raise UsageError(f"--signal-rtol {item}: unknown signal {name!r}")
+        try:
+            result[name] = float(value)
+        except ValueError:
+            raise UsageError(f"--signal-rtol {item}: expected NAME=NUMBER") from None
+        if not 0 <= result[name] < float("inf"):
+            raise UsageError(f"--signal-rtol {item}: must be a finite number ≥ 0")
+    return result
+
+
+def baseline_command(action: str, scenarios: list[str] | None, engines: list[str] | None, root: Path, *,
+                     force: bool = False, rtol: float | None = None, signal_rtol: list[str] | None = None,
+                     workers: int = 0, limits: Limits = Limits()) -> int:
+    """`mechval baseline save|check`: the scenarios (default: the built-ins
+    not tagged 'hard') planned and checked against the limits before any
+    run, then `save_command` or `check_command`."""
+    engines = chosen_engines(engines)
+    plans = [prepare(s, engines) for s in chosen_scenarios(scenarios, skip_hard=True)]
+    check_runs([(t.scenario, t.engine, t.settings) for t in tasks_for(plans, engines)], limits)
+    if action == "save":
+        check_writable(root, root)
+        return save_command(plans, engines, root, force, worker_count(workers))
+    return check_command(plans, engines, root, rtol, parse_signal_rtol(signal_rtol), worker_count(workers))

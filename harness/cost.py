@@ -4,7 +4,8 @@ Every engine runs its ladder of time steps (the adapter's `cost_ladder`,
 rotations per step at the run's peak rate Ω, each snapped to the sample
 interval divided by a 1-2-5 count, so the step divides the interval as
 every adapter requires), crossed with its `cost_variants`, plus its default
-step. One point (one setting) is one task: its timing repeats stay on one
+step. One point (one setting) is one task (`mechval.outcome.Task`, as a
+comparison run's): its timing repeats stay on one
 worker, and every task goes through the same `Executor` (a local process
 pool or a Dask cluster), so the errors do not depend on where it ran.
 
@@ -25,40 +26,32 @@ column; their points take no part in orders and cheapest settings.
 
 from __future__ import annotations
 
+import functools
+import sys
 import time
-from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 from mechval.compare import compare
-from mechval.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE
+from mechval.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE, cheapest, convergence, format_tables
 from mechval.engines.base import peak_rates
 from mechval.engines.registry import adapter
+from mechval.outcome import Task
 from mechval.scenario import Scenario, Tolerance, require_unique_names
+from mechval.reports.cost_report import write_cost_report
 from mechval.signals import SIGNAL_CLASS, Signals
 
-from .executors import Done, Executor
-from .plan import Plan, planned, scenario_of
+from .defaults import DASK_CONNECT_TIMEOUT, Limits
+from .executors import Done, Executor, dask_address_problem, executor_for
+from .plan import Plan, planned, prepare, scenario_of
+from .preflight import UsageError, check_out_dir, check_runs, chosen_engines, default_out_dir, load_scenario, worker_count
 from .simulate import simulate
 
-
-
-@dataclass(frozen=True)
-class Point:
-    """One setting of one engine on one scenario, timed `repeats` times."""
-
-    scenario: Scenario
-    engine: str
-    variant: str = ""
-    overrides: Mapping[str, Any] = field(default_factory=dict)
-    step: float = float("nan")
-    default: bool = False
-    repeats: int = 3
-    #: Resolved when the sweep was planned (`mechval.harness.plan`), so that
-    #: the timed runs derive nothing (None: resolved in the worker).
-    settings: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -71,11 +64,11 @@ class Measurement:
     engine_s: tuple[float, ...]
 
 
-def measure_point(point: Point) -> Measurement:
+def measure_point(point: Task, repeats: int = 3) -> Measurement:
     """Worker body: simulate the point `repeats` times, timing each call."""
     engine = adapter(point.engine)     # imports the engine before any timing
     first, run_s, build_s, engine_s = None, [], [], []
-    for _ in range(point.repeats):
+    for _ in range(repeats):
         start = time.perf_counter()
         signals = simulate(point.scenario, engine, point.overrides, settings=point.settings)
         total = time.perf_counter() - start
@@ -97,7 +90,7 @@ def nice_count(ratio: float) -> int:
         decade *= 10
 
 
-def points_for(scene: Scenario | Plan, engine: str, quick: bool = False, repeats: int = 3) -> list[Point]:
+def points_for(scene: Scenario | Plan, engine: str, quick: bool = False) -> list[Task]:
     """The sweep of one engine on a scenario (or its prepared plan): its
     variants × its ladder and default step (the adapter's step for the
     scenario, as interval / k), each with its resolved settings. Quick: the
@@ -108,7 +101,7 @@ def points_for(scene: Scenario | Plan, engine: str, quick: bool = False, repeats
     plan = planned(scene, [adapter_])
     scenario = plan.scenario
     if not adapter_.step_setting:
-        return [Point(scenario, engine, "default", {}, default=True, repeats=repeats, settings=plan.settings(adapter_))]
+        return [Task(scenario, engine, "default", {}, settings=plan.settings(adapter_), default=True)]
     times = scenario.time.t
     interval = float(times[1] - times[0])
     default = float(plan.settings(adapter_)[adapter_.step_setting])
@@ -125,25 +118,25 @@ def points_for(scene: Scenario | Plan, engine: str, quick: bool = False, repeats
     for name, overrides in variants.items():
         for k in sorted(counts):
             chosen = {**overrides, adapter_.step_setting: interval / k}
-            points.append(Point(scenario, engine, name, chosen, interval / k, default=not overrides and k == k_default,
-                                repeats=repeats, settings=plan.settings(adapter_, chosen)))
+            points.append(Task(scenario, engine, name, chosen, settings=plan.settings(adapter_, chosen), step=interval / k,
+                               default=not overrides and k == k_default))
     return points
 
 
 def sweep(scenarios: Sequence[Scenario | Plan], engines: Iterable[str], executor: Executor, quick: bool = False,
-          repeats: int = 3, on_done: Callable[[Point, Done], None] = lambda point, done: None) -> pd.DataFrame:
+          repeats: int = 3, on_done: Callable[[Task, Done], None] = lambda point, done: None) -> pd.DataFrame:
     """The cost table (COLUMNS) of every engine on every scenario (or its
     prepared plan), plus one reference row per scenario (its own cost;
     class and error empty)."""
     require_unique_names([scenario_of(s) for s in scenarios])     # the references below are keyed by name
     engines = list(engines)
     plans = [planned(s, engines) for s in scenarios]
-    points = [Point(plan.scenario, REFERENCE, "closed form", repeats=repeats) for plan in plans]
-    points += [p for plan in plans for e in engines for p in points_for(plan, e, quick, repeats)]
+    points = [Task(plan.scenario, REFERENCE, "closed form") for plan in plans]
+    points += [p for plan in plans for e in engines for p in points_for(plan, e, quick)]
     # Finest steps first: the longest tasks start early and the pool drains
     # evenly. The table keeps the points' own order.
     order = sorted(range(len(points)), key=lambda k: (points[k].engine != REFERENCE, points[k].step))
-    ran = executor.run(measure_point, [points[k] for k in order],
+    ran = executor.run(functools.partial(measure_point, repeats=repeats), [points[k] for k in order],
                        lambda index, done: on_done(points[order[index]], done))
     dones: list[Done] = [Done()] * len(points)
     for k, done in zip(order, ran):
@@ -156,22 +149,60 @@ def sweep(scenarios: Sequence[Scenario | Plan], engines: Iterable[str], executor
                 raise RuntimeError(f"{point.scenario.name}: the reference failed: {done.error}")
             seconds = _per_sim_second(point.scenario, done.value.run_s)
             references[point.scenario.name] = (done.value.signals, seconds)
-            rows.append(dict(_point_columns(point), version=done.value.signals.version,
+            rows.append(dict(_point_columns(point, repeats), version=done.value.signals.version,
                              **_timing(point.scenario, done.value, seconds), failure=""))
             continue
-        rows += _point_rows(point, done, *references[point.scenario.name])
+        rows += _point_rows(point, repeats, done, *references[point.scenario.name])
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def cost_sweep(scenarios: Sequence[Scenario | Plan], engines: Iterable[str], executor: Executor, quick: bool,
+               repeats: int, quiet: bool) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """The cost table, observed orders and cheapest settings
+    (`mechval.cost_tables`), with a progress bar on stderr unless `quiet`."""
+    with tqdm(desc="cost points", unit="point", file=sys.stderr, disable=quiet) as bar:
+        def done(point, outcome):
+            bar.set_postfix_str(f"{point.engine} {point.setting} dt {point.step:.3g}"
+                                + (" FAILED" if outcome.error else ""), refresh=False)
+            bar.update()
+        table = sweep(scenarios, engines, executor, quick=quick, repeats=repeats, on_done=done)
+    return table, convergence(table), cheapest(table)
+
+
+def cost_command(scenarios: list[str], engines: list[str] | None, out: Path | None, *, dask: str | None = None,
+                 dask_connect_timeout: float = DASK_CONNECT_TIMEOUT, workers: int = 0, timeout: float = 900.0, quick: bool = False,
+                 repeats: int = 3, quiet: bool = False, limits: Limits = Limits()) -> int:
+    """`mechval cost`: every refusal before any work, then the sweep, its
+    report folder and its tables printed."""
+    if repeats < 1:
+        raise UsageError("--repeats must be at least 1")
+    problem = "" if dask is None else dask_address_problem(dask)
+    if problem:
+        raise UsageError(f"--dask {dask!r}: not a Dask scheduler address: {problem}")
+    chosen = [load_scenario(name) for name in scenarios]
+    engines = chosen_engines(engines)
+    plans = [prepare(s, engines) for s in chosen]
+    check_runs([(p.scenario, p.engine, p.settings) for plan in plans for e in engines
+                for p in points_for(plan, e, quick)], limits)
+    out = out or default_out_dir("cost")
+    check_out_dir(out)
+    executor = executor_for(dask, worker_count(workers), timeout, dask_connect_timeout)
+    table, orders, cheap = cost_sweep(plans, engines, executor, quick, repeats, quiet)
+    write_cost_report(out, table, orders, cheap)
+    print(format_tables(table, orders, cheap))
+    print(f"report: {out / 'index.html'}")
+    return 0
 
 
 def _per_sim_second(scenario: Scenario, seconds: Sequence[float]) -> float:
     return float(np.median(seconds)) / float(scenario.time.end - scenario.time.t[0])
 
 
-def _point_columns(point: Point) -> dict:
+def _point_columns(point: Task, repeats: int) -> dict:
     interval = float(point.scenario.time.t[1] - point.scenario.time.t[0])
-    return dict(scenario=point.scenario.name, engine=point.engine, variant=point.variant, step_s=point.step,
+    return dict(scenario=point.scenario.name, engine=point.engine, variant=point.setting, step_s=point.step,
                 steps_per_sample=round(interval / point.step) if np.isfinite(point.step) else np.nan,
-                default=point.default, repeats=point.repeats)
+                default=point.default, repeats=repeats)
 
 
 def _timing(scenario: Scenario, m: Measurement, reference_s: float) -> dict:
@@ -182,14 +213,14 @@ def _timing(scenario: Scenario, m: Measurement, reference_s: float) -> dict:
                 build_s=float(np.median(m.build_s)), engine_s_per_sim_s=_per_sim_second(scenario, m.engine_s))
 
 
-def _point_rows(point: Point, done: Done, reference: Signals, reference_s: float) -> list[dict]:
+def _point_rows(point: Task, repeats: int, done: Done, reference: Signals, reference_s: float) -> list[dict]:
     """One row per signal class (and the headline) of one point."""
-    scenario, base = point.scenario, _point_columns(point)
+    scenario, base = point.scenario, _point_columns(point, repeats)
     tolerance = scenario.tolerance_for(point.engine)
     classes = [c for c in CLASS_ORDER if c == HEADLINE or c in _classes(reference)]
     if done.error:
         return [dict(base, **{"class": c}, error_kind=_kind(tolerance, c), failure=done.error) for c in classes]
-    records = compare(reference, done.value.signals, tolerance, scenario.name, point.engine, point.variant)
+    records = compare(reference, done.value.signals, tolerance, scenario.name, point.engine, point.setting)
     errors, failure = class_errors(records, tolerance), failure_of(records)
     timing = _timing(scenario, done.value, reference_s)
     return [dict(base, version=done.value.signals.version, **timing, **{"class": c},

@@ -26,6 +26,7 @@ from typing import Any, Callable, Protocol, Sequence
 from pebble import ProcessExpired, ProcessPool
 from pebble.pool.process import WORKERS_NAME
 
+from .defaults import DASK_CONNECT_TIMEOUT
 from .interrupts import die_with_parent
 
 
@@ -94,9 +95,6 @@ def _stop_now(pool: ProcessPool) -> None:
     pool.join()
 
 
-#: Seconds to wait for a Dask scheduler to answer before giving up
-#: (`mechval cost --dask-connect-timeout`; Dask's own default is 30 s).
-DASK_CONNECT_TIMEOUT = 10.0
 
 
 class SchedulerUnreachable(RuntimeError):

@@ -6,16 +6,20 @@ canonical signals and the run's health."""
 from __future__ import annotations
 
 import dataclasses
+import sys
+from pathlib import Path
 from typing import Any, Mapping
 
 from mechval.adapter import EngineAdapter, Unrepresentable
 from mechval.engine_inputs import EngineInputs, Feed, fed_mechanism
-from mechval.engines.registry import REFERENCE, adapter
+from mechval.engines.registry import REFERENCE, EngineUnavailable, UnknownEngine, adapter
 from mechval.health import health
-from mechval.scenario import Scenario, ScenarioError
+from mechval.scenario import Scenario, ScenarioError, one_line
 from mechval.signals import Signals, canonical_signals
 
+from .defaults import Limits
 from .plan import Plan, prepare
+from .preflight import EngineFailure, check_csv, check_runs, load_scenario
 
 
 def simulate(scenario: Scenario | Plan, engine: EngineAdapter | str,
@@ -51,3 +55,31 @@ def simulate(scenario: Scenario | Plan, engine: EngineAdapter | str,
     signals = canonical_signals(mechanism, raw.frame, engine_adapter.name, engine_adapter.version(), settings,
                                 raw.missing, health(mechanism, raw.frame, raw.missing), raw.info)
     return signals if inputs is None else dataclasses.replace(signals, inputs=inputs.record())
+
+
+def simulate_command(scenario_name: str, engine: str, csv: Path, limits: Limits = Limits()) -> int:
+    """`mechval simulate`: one engine's canonical signals written to `csv`,
+    or nothing written and one line saying why."""
+    scenario = load_scenario(scenario_name)
+    check_csv(csv)
+    plan = prepare(scenario, [engine])
+    settings = plan.settings(engine)
+    check_runs([(scenario, engine, settings)], limits)
+    try:
+        signals = simulate(plan, engine, settings=settings)
+    except (ScenarioError, EngineUnavailable, UnknownEngine, KeyboardInterrupt):
+        raise
+    except Exception as exc:    # the engine's own failure (a solver that gives up): one line, exit 1
+        raise EngineFailure(f"{engine} on {scenario.source or scenario.name}: {type(exc).__name__}: "
+                            f"{one_line(str(exc))}; nothing written to {csv}") from None
+    unexplained = signals.unexplained_gaps()
+    if unexplained:
+        # An engine that blew up must not leave a CSV that looks like data.
+        raise EngineFailure(f"{engine} returned non-finite values without a reason "
+                            f"({'; '.join(unexplained)}); nothing written to {csv}")
+    signals.to_csv(csv)
+    for name, reason in signals.missing.items():
+        print(f"note: {name}: missing values ({reason})", file=sys.stderr)
+    print(f"wrote {csv}: {len(signals.frame)} samples × {signals.frame.shape[1]} columns "
+          f"({engine} {signals.version})")
+    return 0

@@ -26,6 +26,38 @@ def test_list_names_scenarios_and_engines():
     assert out.returncode == 0, out.stderr
     for word in ("fourbar-seed", "slider-crank", "reference", "mujoco", "pybullet", "exudyn"):
         assert word in out.stdout
+    assert "engines (installed: the library found and its version, not imported; a run imports it):" in out.stdout
+
+
+def test_list_imports_nothing_heavy():
+    """`mechval list` reads the scenario files' headers and the registry's
+    entry points (issue 24: under 0.5 s; tests/bench/plan_bench.py prints
+    the time): it imports neither numpy, pandas, scipy nor an engine
+    library, nor the scenario loader."""
+    from mechval.engines.registry import EngineUnavailable, adapter_class, engine_names
+    libraries = set()
+    for name in engine_names():
+        try:
+            libraries.add(adapter_class(name).library.split(".")[0])
+        except EngineUnavailable:       # not installed: it cannot be imported either
+            pass
+    heavy = sorted({"numpy", "pandas", "scipy", "mechval.scenario", "mechval.scenarios.loader"} | libraries)
+    code = (f"import sys; from mechval.harness.cli import main; status = main(['list']); "
+            f"print(status, [m for m in {heavy!r} if m in sys.modules])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0 and out.stdout.splitlines()[-1] == "0 []", (out.stdout[-500:], out.stderr)
+
+
+def test_the_listing_reads_what_the_loader_reads():
+    """The listing finds the built-ins and escapes text without importing
+    the loader or `mechval.scenario`: the same names and the same lines."""
+    from mechval.harness.listing import builtin_files, one_line
+    from mechval.scenario import one_line as scenario_one_line
+    from mechval.scenarios import builtin_names
+    assert list(builtin_files()) == builtin_names()
+    assert all(path == builtin_path(name) for name, path in builtin_files().items())
+    for text, limit in [("a\nb\x00c\u2028d é", None), ("x" * 30, 10), ("tab\there", 5), ("", 1)]:
+        assert one_line(text, limit) == scenario_one_line(text, limit)
 
 
 @pytest.mark.parametrize("name", ["fourbar-seed", "slider-crank"])

@@ -65,7 +65,7 @@ def test_ladder_spans_two_decades_of_steps_dividing_the_interval(engine):
         assert abs(interval / step - round(interval / step)) < 1e-9
     assert sum(p.default for p in points) == 1
     cls = registry.adapter_class(engine)
-    assert {p.variant for p in points} == set(cls.cost_variants)
+    assert {p.setting for p in points} == set(cls.cost_variants)
     assert all(p.overrides[cls.step_setting] == p.step for p in points)
 
 

@@ -17,6 +17,7 @@ through prctl(PR_SET_PDEATHSIG)).
 from __future__ import annotations
 
 import contextlib
+import importlib
 import os
 import signal
 import subprocess
@@ -282,12 +283,11 @@ def test_sigterm_while_the_report_is_written_leaves_no_folder(tmp_path, fakes, m
 @pytest.fixture
 def no_engine_work(monkeypatch):
     """Fail if any engine (or the reference for a report) starts working."""
-    from mechval.harness import cli
-
     def started(*args, **kwargs):
         raise AssertionError("engine work started before the refusal")
-    for name in ("run_tasks", "references_for", "sweep", "simulate"):
-        monkeypatch.setattr(cli, name, started)
+    for module, name in [("run", "run_tasks"), ("run", "references_for"), ("cost", "sweep"),
+                         ("simulate", "simulate")]:
+        monkeypatch.setattr(importlib.import_module(f"mechval.harness.{module}"), name, started)
 
 
 def one_error_line(capsys) -> str:

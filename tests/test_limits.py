@@ -4,6 +4,7 @@ would take, before any work; output is checked before the engines run."""
 
 from __future__ import annotations
 
+import importlib
 import os
 import stat
 from pathlib import Path
@@ -244,8 +245,9 @@ def no_engine_work(monkeypatch):
     """Fail if any engine (or the reference for a report) starts working."""
     def started(*args, **kwargs):
         raise AssertionError("engine work started before the refusal")
-    for name in ("run_tasks", "references_for", "sweep", "simulate"):
-        monkeypatch.setattr(cli, name, started)
+    for module, name in [("run", "run_tasks"), ("run", "references_for"), ("cost", "sweep"),
+                         ("simulate", "simulate")]:
+        monkeypatch.setattr(importlib.import_module(f"mechval.harness.{module}"), name, started)
 
 
 def test_cli_refuses_over_max_steps_before_engine_work(fakes, no_engine_work, tmp_path, capsys):

@@ -80,9 +80,9 @@ def mechval(site: Path, *args: str) -> subprocess.CompletedProcess:
 def test_an_installed_plugin_is_listed_and_runs(installed, tmp_path):
     listing = mechval(installed, "list")
     assert listing.returncode == 0, listing.stderr
-    assert "tiny         available" in listing.stdout
-    # The plug-in's library is missing: unavailable, with the library's name.
-    assert "missing      unavailable: missing: no_such_engine_library_xyz cannot be imported" in listing.stdout
+    assert "tiny         installed (tiny-mechval-engine 0.0.1)" in listing.stdout
+    # The plug-in's library is missing: not installed, with the library's name.
+    assert "missing      not installed: missing: no_such_engine_library_xyz is not installed" in listing.stdout
     csv = tmp_path / "tiny.csv"
     run = mechval(installed, "simulate", "fourbar-seed", "--engine", "tiny", "--csv", str(csv))
     assert run.returncode == 0, run.stderr
@@ -142,3 +142,25 @@ def test_a_bug_in_an_adapter_module_is_not_unavailability(monkeypatch, tmp_path)
     monkeypatch.setattr(registry, "targets", lambda: targets)
     with pytest.raises(ImportError):
         registry.adapter_class("buggy")
+
+
+def test_installed_is_found_and_available_is_imported(monkeypatch, tmp_path):
+    """`installed` (what `mechval list` shows) finds the library and its
+    distribution's version without importing either; a library that is
+    found but fails to import (a broken installation) is reported where
+    the engine is used (`availability`, `adapter`)."""
+    (tmp_path / "broken_engine_lib").mkdir()
+    (tmp_path / "broken_engine_lib" / "__init__.py").write_text("raise ImportError('a broken build')\n")
+    (tmp_path / "broken_engine_adapter.py").write_text(textwrap.dedent("""
+        from mechval.engines.base import EngineAdapter
+
+        class BrokenAdapter(EngineAdapter):
+            name = "broken"
+            library = "broken_engine_lib"
+            distribution = "pytest"
+    """))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(registry, "targets", lambda: {"broken": "broken_engine_adapter:BrokenAdapter"})
+    assert registry.installed() == {"broken": f"pytest {importlib.metadata.version('pytest')}"}
+    assert "broken_engine_adapter" not in sys.modules and "broken_engine_lib" not in sys.modules
+    assert registry.availability()["broken"].startswith("broken: broken_engine_lib cannot be imported")

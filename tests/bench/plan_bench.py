@@ -1,4 +1,5 @@
-"""Each scene prepared once (issue 24 §2): what `mechval list`, one
+"""Each scene prepared once (issue 24 §2): what `mechval list` (and which
+heavy modules it imports: none), one
 `simulate` and one `run` cost, where a simulate's time goes, and how many
 position solves each makes, for this checkout or another one (before and
 after a change):
@@ -81,6 +82,16 @@ print("PROFILE " + json.dumps(out))
 """
 
 
+#: Which heavy modules `mechval list` imported (issue 24: none; under 0.5 s).
+LIST_IMPORTS = """
+import sys, json
+from mechval.harness.cli import main
+main(["list"])
+heavy = ("numpy", "pandas", "scipy", "mujoco", "pybullet", "exudyn")
+print("IMPORTS " + json.dumps([m for m in heavy if m in sys.modules]))
+"""
+
+
 def python(tree: Path, code: str) -> tuple[str, float, float]:
     """Run code in a fresh interpreter on the tree's mechval: its output,
     wall time and CPU time (the process and its children)."""
@@ -126,6 +137,8 @@ def main() -> None:
         print(f"\n{'command':<80} {'wall [s]':>9} {'CPU [s]':>8}")
         for name, wall, cpu in rows:
             print(f"{name:<80} {wall:>9.2f} {cpu:>8.2f}")
+
+        print(f"\nheavy modules `mechval list` imports: {tagged(python(tree, LIST_IMPORTS)[0], 'IMPORTS') or 'none'}")
 
         profile = tagged(python(tree, PROFILE.format(argv=SIMULATE + csv))[0], "PROFILE")
         print(f"\nwhere one simulate's time goes (cProfile, cumulative, imports excluded) [s]")

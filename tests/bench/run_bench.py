@@ -6,7 +6,7 @@ and per scene; the page's size and how fast it opens.
                                               [--workers N] [--browser]
 
 Without SCENARIO: every built-in, as `make run` runs them. The phases are
-those of `mechval run` itself (`mechval.harness.cli.run_and_report`), so the
+those of `mechval run` itself (`mechval.harness.run.run_and_report`), so the
 figures are the ones users get. The machine may be shared: CPU time is the
 steadier figure, and wall time well above CPU time / workers shows
 contention (the load average is printed before and after). With --browser,
@@ -31,7 +31,7 @@ import tempfile  # noqa: E402
 from collections import defaultdict  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from mechval.harness.cli import build_parser, run_and_report  # noqa: E402
+from mechval.harness.run import run_and_report  # noqa: E402
 
 
 class Phases:
@@ -112,11 +112,9 @@ def main() -> None:
 
     load_before = os.getloadavg()
     out = Path(tempfile.mkdtemp(prefix="mechval-bench-")) / "report"
-    run_args = build_parser().parse_args(
-        ["run", *args.scenarios, *(f"--engine={e}" for e in args.engine), "--out", str(out), "--quiet",
-         "--workers", str(args.workers)] + (["--skip-hard"] if args.skip_hard else []))
     phases = Phases()
-    run = run_and_report(run_args, phases)
+    run = run_and_report(args.scenarios, args.engine or None, out, workers=args.workers, skip_hard=args.skip_hard,
+                         quiet=True, phase=phases)
     outcomes = run.outcomes
 
     print(f"{'scenario':<28} {'engine':<24} {'wall [s]':>9} {'CPU [s]':>9}")

@@ -21,10 +21,10 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from .mechanism import Mechanism
-from .planar_solver import redundant_constraints
-from .scenario import Scenario, ScenarioError
-from .settings import TIMESTEP, Setting
+from mechval.mechanism import Mechanism
+from mechval.planar_solver import redundant_constraints
+from mechval.scenario import Scenario, ScenarioError
+from mechval.settings import TIMESTEP, Setting
 
 #: The finest step a setting may ask for, as steps per sample interval:
 #: beyond it a run cannot finish (nor its states fit in memory).

@@ -16,10 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linkages import ClosedForm, build_mechanism
-from .planar_analysis import analyse_planar, format_planar_analysis
-from .reference import raw_reference
-from .scenario import Scenario, ScenarioError
+from mechval.linkages import ClosedForm, build_mechanism
+from mechval.planar_analysis import analyse_planar, format_planar_analysis
+from mechval.reference import raw_reference
+from mechval.scenario import Scenario, ScenarioError
 
 
 @dataclass(frozen=True)

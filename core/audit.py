@@ -13,8 +13,9 @@ value, that nothing prescribes it; gravity (0 when the scene has none; z
 always 0); and a fixed list of effects that must be absent
 (`ABSENT_EFFECTS`).
 
-Engine audits (`mechval.engines.*_audit`) build the model with the
-adapter's own build functions and return `Reading`s under the same
+Engine audits (`mechval.engines.<engine>.audit`) build the model with the
+adapter's own build functions and read it with a `ModelReader` (one
+protocol for every engine), which returns `Reading`s under the same
 (item, quantity) keys, converted to the Mechanism's frame conventions (each
 states how). `audit(expected, readings)` joins the two into one row per
 quantity with a verdict:
@@ -40,14 +41,15 @@ scale 0, so the engine must hold exactly 0.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Literal, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
-from .kinematics import rotate
-from .mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
+from mechval.kinematics import rotate
+from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 #: Engines store what they are given in float64 (PyBullet too; only its
 #: `getLinkState` link-frame output is float32, and the audits do not use it)
@@ -107,6 +109,40 @@ class Reading:
     note: str = ""
     source: Source = "read"
     unit: str = ""
+
+
+class ModelReader(ABC):
+    """Reads one engine's built model in the state a run starts from: the
+    protocol every engine audit implements (the same methods, the same
+    signatures). The engine's `audit_model(mechanism, times, settings)`
+    builds the model as its adapter does and hands the reader everything
+    it needs; `table()` is the audit."""
+
+    mech: Mechanism
+
+    @abstractmethod
+    def body(self, name: str) -> list[Reading]:
+        """The body's mass, centre of mass (body frame) and izz."""
+
+    @abstractmethod
+    def joint(self, joint: Joint) -> list[Reading]:
+        """The joint's kind, bodies, points (and a slide's axis)."""
+
+    @abstractmethod
+    def scene(self) -> list[Reading]:
+        """Gravity and every effect that must be absent (`ABSENT_EFFECTS`)."""
+
+    @abstractmethod
+    def notes(self) -> list[Reading]:
+        """Engine elements and settings with no Mechanism counterpart."""
+
+    @abstractmethod
+    def readings(self) -> list[Reading]:
+        """Every reading of the model, the scene's and the notes included."""
+
+    def table(self) -> pd.DataFrame:
+        """The audit table: the readings set against `expected_model`."""
+        return audit(expected_model(self.mech), self.readings())
 
 
 @dataclass(frozen=True)

@@ -46,9 +46,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .health import NOT_APPLICABLE
-from .scenario import Tolerance
-from .signals import SIGNAL_CLASS, Signals
+from mechval.health import NOT_APPLICABLE
+from mechval.scenario import Tolerance
+from mechval.signals import SIGNAL_CLASS, Signals
 
 #: Error growth columns (`error_growth`), after the original ones so that
 #: those keep their places in every CSV written before.

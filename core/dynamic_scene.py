@@ -15,12 +15,12 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from .dynamics import raw_dynamics
-from .mechanism import BodyPose, Mechanism
-from .planar_solver import default_pose
-from .planar_constraints import MechanismError
-from .scenario import ScenarioError
-from .scene import Scene
+from mechval.dynamics import raw_dynamics
+from mechval.mechanism import BodyPose, Mechanism
+from mechval.planar_solver import default_pose
+from mechval.planar_constraints import MechanismError
+from mechval.scenario import ScenarioError
+from mechval.scene import Scene
 
 
 class IntegratedMotion:

@@ -49,12 +49,12 @@ from scipy.integrate import DOP853, Radau
 from scipy.linalg import qr, solve_triangular
 from scipy.linalg.lapack import dgetrf, dgetrs
 
-from .initial_state import SINGULAR_CONDITION, consistent_state, coordinate_name, with_coordinates
-from .mechanism import BodyPose, InitialValue, Mechanism
-from .planar_constraints import MechanismError
-from .planar_linear import settled
-from .planar_positions import Nodes, Structure
-from .planar_solver import CHUNK, UNIQUE_TOL, PlanarSolver, default_pose
+from mechval.initial_state import SINGULAR_CONDITION, consistent_state, coordinate_name, with_coordinates
+from mechval.mechanism import BodyPose, InitialValue, Mechanism
+from mechval.planar_constraints import MechanismError
+from mechval.planar_linear import settled
+from mechval.planar_positions import Nodes, Structure
+from mechval.planar_solver import CHUNK, UNIQUE_TOL, PlanarSolver, default_pose
 
 #: The integrator's relative tolerance by default. It bounds each step's
 #: error; over a run the steps' errors add up, about in proportion to the

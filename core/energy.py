@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import cumulative_simpson
 
-from .kinematics import point_motion, slide_rate
-from .mechanism import GROUND, BodyTorque, Joint, Mechanism, SpringDamper
+from mechval.kinematics import point_motion, slide_rate
+from mechval.mechanism import GROUND, BodyTorque, Joint, Mechanism, SpringDamper
 
 
 def kinetic_energy(mech: Mechanism, raw) -> np.ndarray:

@@ -31,7 +31,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from .mechanism import Mechanism
+from mechval.mechanism import Mechanism
 
 #: The read kinds: the reference motion at some instants (prescribed, or the
 #: integrated motion of a torque-driven or free scene), the forward-dynamics

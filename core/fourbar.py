@@ -23,10 +23,10 @@ from typing import Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from .drive import DriveLaw
-from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, sign_changes, solve_loop_rates
-from .mechanism import GROUND, Body, Joint
-from .scenario import LinkMass, ScenarioError
+from mechval.drive import DriveLaw
+from mechval.loop import LoopAnalysis, cond2, crank_pin, interval_extremes, sign_changes, solve_loop_rates
+from mechval.mechanism import GROUND, Body, Joint
+from mechval.scenario import LinkMass, ScenarioError
 
 LINKS = ("crank", "coupler", "rocker")
 PINS = ("O2", "A", "B", "O4")

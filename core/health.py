@@ -43,11 +43,11 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from .energy import (applied_power, conservative, energy_rate, input_power, kinetic_energy, kinetic_rate,
+from mechval.energy import (applied_power, conservative, energy_rate, input_power, kinetic_energy, kinetic_rate,
                      potential_energy, work, work_error)
-from .kinematics import joint_gap, joint_gaps, slide_motion, slide_rate  # noqa: F401  (tests import them here)
-from .mechanism import GROUND, Mechanism
-from .planar_positions import mechanism_size
+from mechval.kinematics import joint_gap, joint_gaps, slide_motion, slide_rate  # noqa: F401  (tests import them here)
+from mechval.mechanism import GROUND, Mechanism
+from mechval.planar_positions import mechanism_size
 
 #: The judged health measures (mechval.compare.HEALTH_BOUNDS); a mechanism
 #: has one of energy_drift and energy_balance, and drive_error only with drives.

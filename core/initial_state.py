@@ -32,12 +32,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .drive import DriveLaw
-from .mechanism import BodyPose, Drive, InitialValue, Mechanism
-from .planar_constraints import Constraints, MechanismError
-from .planar_linear import solve_one
-from .planar_positions import Scaling, Structure, gauss_newton, initial_guess, mechanism_size, rank
-from .planar_tree import Factor, Tree
+from mechval.drive import DriveLaw
+from mechval.mechanism import BodyPose, Drive, InitialValue, Mechanism
+from mechval.planar_constraints import Constraints, MechanismError
+from mechval.planar_linear import solve_one
+from mechval.planar_positions import Scaling, Structure, gauss_newton, initial_guess, mechanism_size, rank
+from mechval.planar_tree import Factor, Tree
 
 #: Condition number of the scaled reduced Jacobian above which the stated
 #: coordinates are refused as unable to parametrise the motion: the state's

@@ -34,10 +34,10 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from .drive import DriveLaw
-from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, measured_stroke_ratio, sign_changes
-from .mechanism import GROUND, MOTION_QUANTITIES, Body, Joint
-from .scenario import LinkMass, ScenarioError
+from mechval.drive import DriveLaw
+from mechval.loop import LoopAnalysis, cond2, crank_pin, interval_extremes, measured_stroke_ratio, sign_changes
+from mechval.mechanism import GROUND, MOTION_QUANTITIES, Body, Joint
+from mechval.scenario import LinkMass, ScenarioError
 
 LINKS = ("crank", "rod", "rocker")
 PINS = ("O2", "A", "sleeve", "O4")

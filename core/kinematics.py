@@ -21,7 +21,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .mechanism import GROUND, Joint, Mechanism, Vec2
+from mechval.mechanism import GROUND, Joint, Mechanism, Vec2
 
 #: (cos θ, sin θ) of a body angle.
 Trig = tuple[np.ndarray, np.ndarray]

@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import math
 
-from .scenario import Scenario, ScenarioError
-from .adapter import as_float
-from .reference import ReferenceAdapter
-from .drive import DriveLaw
-from .scene import signal_map as scene_signal_map
+from mechval.scenario import Scenario, ScenarioError
+from mechval.adapter import as_float
+from mechval.reference import ReferenceAdapter
+from mechval.drive import DriveLaw
+from mechval.scene import signal_map as scene_signal_map
 
 #: Most output instants per scenario. The loader itself evaluates the
 #: reference at every sample (closure and trust checks): at 10⁶ samples that

@@ -22,15 +22,15 @@ from typing import Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from . import fourbar, inverted_slider, slider_crank, slotted_lever
-from .drive import DriveLaw
-from .dynamic_scene import with_dynamics
-from .mechanism import Drive, Mechanism
-from .planar_scene import SolvedMotion, has_redundant_constraints
-from .planar_solver import default_pose
-from .resultants import RESULTANT_SIGNALS
-from .scenario import Scenario
-from .scene import signal_map as scene_signal_map
+from mechval import fourbar, inverted_slider, slider_crank, slotted_lever
+from mechval.drive import DriveLaw
+from mechval.dynamic_scene import with_dynamics
+from mechval.mechanism import Drive, Mechanism
+from mechval.planar_scene import SolvedMotion, has_redundant_constraints
+from mechval.planar_solver import default_pose
+from mechval.resultants import RESULTANT_SIGNALS
+from mechval.scenario import Scenario
+from mechval.scene import signal_map as scene_signal_map
 
 LINKAGES: dict[str, ModuleType] = {"fourbar": fourbar, "slider_crank": slider_crank,
                                    "slotted_lever": slotted_lever, "inverted_slider": inverted_slider}

@@ -38,7 +38,7 @@ from typing import Callable, Literal, Mapping
 import numpy as np
 import pandas as pd
 
-from .drive import DriveLaw
+from mechval.drive import DriveLaw
 
 GROUND = "ground"
 MOTION_QUANTITIES = ("x", "y", "theta", "vx", "vy", "omega", "ax", "ay", "alpha")

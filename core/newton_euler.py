@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .kinematics import point_motion, point_position, slide_axis, slide_rate, trig
-from .mechanism import DRIVE_TORQUE, GROUND, Mechanism
+from mechval.kinematics import point_motion, point_position, slide_axis, slide_rate, trig
+from mechval.mechanism import DRIVE_TORQUE, GROUND, Mechanism
 
 
 @dataclass(frozen=True)

@@ -7,9 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from .engine_inputs import Feed
-from .scenario import Scenario
-from .signals import Signals
+from mechval.engine_inputs import Feed
+from mechval.scenario import Scenario
+from mechval.signals import Signals
 
 
 @dataclass(frozen=True)

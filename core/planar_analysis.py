@@ -18,10 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linkages import build_mechanism
-from .planar_constraints import MechanismError
-from .planar_solver import raw_planar
-from .scenario import Scenario, ScenarioError
+from mechval.linkages import build_mechanism
+from mechval.planar_constraints import MechanismError
+from mechval.planar_solver import raw_planar
+from mechval.scenario import Scenario, ScenarioError
 
 NEAR_SINGULAR = 10.0
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mechanism import GROUND, Mechanism
+from mechval.mechanism import GROUND, Mechanism
 
 
 class MechanismError(ValueError):

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mechanism import BodyTorque, Mechanism, SpringDamper
-from .planar_constraints import Attachment, Constraints
+from mechval.mechanism import BodyTorque, Mechanism, SpringDamper
+from mechval.planar_constraints import Attachment, Constraints
 
 
 def mass_diagonal(mech: Mechanism) -> np.ndarray:

@@ -38,9 +38,9 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from .mechanism import GROUND, BodyPose, Mechanism
-from .planar_constraints import Constraints, MechanismError
-from .planar_linear import ROUNDING, last_max, settled, solve_one
+from mechval.mechanism import GROUND, BodyPose, Mechanism
+from mechval.planar_constraints import Constraints, MechanismError
+from mechval.planar_linear import ROUNDING, last_max, settled, solve_one
 
 #: Singular values below RANK_TOL·σmax of the scaled Jacobian count as zero
 #: (a structurally redundant row gives ~1e-16; a mechanism near a toggle

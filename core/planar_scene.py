@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .mechanism import Mechanism
-from .planar_constraints import MechanismError
-from .planar_solver import raw_planar, redundant_constraints
+from mechval.mechanism import Mechanism
+from mechval.planar_constraints import MechanismError
+from mechval.planar_solver import raw_planar, redundant_constraints
 
 
 def has_redundant_constraints(mechanism: Mechanism) -> bool:

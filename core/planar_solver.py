@@ -43,13 +43,13 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from .mechanism import MOTION_QUANTITIES, BodyPose, Mechanism
-from .planar_constraints import Constraints, MechanismError
-from .planar_forces import AppliedForces, mass_diagonal
-from .planar_linear import settled, solve_one
-from .planar_positions import Nodes, Scaling, Structure, assemble, march, mechanism_size, redundant_joint_rows
-from .planar_tree import Factor, Tree
-from .resultants import body_resultants
+from mechval.mechanism import MOTION_QUANTITIES, BodyPose, Mechanism
+from mechval.planar_constraints import Constraints, MechanismError
+from mechval.planar_forces import AppliedForces, mass_diagonal
+from mechval.planar_linear import settled, solve_one
+from mechval.planar_positions import Nodes, Scaling, Structure, assemble, march, mechanism_size, redundant_joint_rows
+from mechval.planar_tree import Factor, Tree
+from mechval.resultants import body_resultants
 
 #: Instants per batch: bounds memory; fewer, longer array operations
 #: (tests/bench/planar_bench.py measures the batch sizes).

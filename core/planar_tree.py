@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .planar_constraints import Constraints, MechanismError
-from .planar_linear import inverse, matvec, norm_inf
+from mechval.planar_constraints import Constraints, MechanismError
+from mechval.planar_linear import inverse, matvec, norm_inf
 
 
 @dataclass(frozen=True)

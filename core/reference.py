@@ -10,12 +10,12 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from . import __version__
-from .adapter import FEATURES, EngineAdapter, RawRun, RunInfo, Unrepresentable
-from .mechanism import Mechanism
-from .dynamics import raw_dynamics
-from .newton_euler import reaction_values
-from .planar_solver import MechanismError, raw_planar
+from mechval import __version__
+from mechval.adapter import FEATURES, EngineAdapter, RawRun, RunInfo, Unrepresentable
+from mechval.mechanism import Mechanism
+from mechval.dynamics import raw_dynamics
+from mechval.newton_euler import reaction_values
+from mechval.planar_solver import MechanismError, raw_planar
 
 #: Instants per chunk: bounds memory on long runs and feeds one thread each.
 CHUNK = 1 << 17

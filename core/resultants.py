@@ -18,8 +18,8 @@ from typing import Mapping
 
 import numpy as np
 
-from .kinematics import point_position, slide_axis
-from .mechanism import GROUND, Mechanism
+from mechval.kinematics import point_position, slide_axis
+from mechval.mechanism import GROUND, Mechanism
 
 #: Canonical quantity → raw column suffix of a body's resultant: net force
 #: x, y (N) and net moment about its centre of mass (N·m).

@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
 
-from .scene import Scene
+from mechval.scene import Scene
 
 if TYPE_CHECKING:                       # the closed forms import this module
-    from .linkages import ClosedForm
+    from mechval.linkages import ClosedForm
 
 
 #: Longest key and reason shown in an error message: a key, or a value a

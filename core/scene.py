@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Mapping
 
-from .mechanism import Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, SpringDamper, TorqueLaw
+from mechval.mechanism import Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, SpringDamper, TorqueLaw
 
 BODY_SIGNALS = ("theta", "omega", "alpha")
 COM_SIGNALS = ("x", "y", "vx", "vy", "ax", "ay")

@@ -17,14 +17,14 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from .adapter import RunInfo
-from .engine_inputs import RecordedInputs
-from .kinematics import point_motion, slide_axis, slide_motion
-from .mechanism import Mechanism
+from mechval.adapter import RunInfo
+from mechval.engine_inputs import RecordedInputs
+from mechval.kinematics import point_motion, slide_axis, slide_motion
+from mechval.mechanism import Mechanism
 # Re-exported: the harness and reports write signals, baselines and report
 # folders through them (mechval.outputs).
-from .outputs import current_umask, write_atomically, write_folder_atomically  # noqa: F401
-from .resultants import body_resultants, resultant_columns, resultant_inputs
+from mechval.outputs import current_umask, write_atomically, write_folder_atomically  # noqa: F401
+from mechval.resultants import body_resultants, resultant_columns, resultant_inputs
 
 COMMON_SIGNALS = (
     "t", "theta2", "omega2", "alpha2", "theta3", "omega3", "alpha3",

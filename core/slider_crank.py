@@ -22,10 +22,10 @@ from typing import Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from .drive import DriveLaw
-from .loop import LoopAnalysis, cond2, crank_pin, interval_extremes, sign_changes
-from .mechanism import GROUND, Body, Joint
-from .scenario import LinkMass, ScenarioError
+from mechval.drive import DriveLaw
+from mechval.loop import LoopAnalysis, cond2, crank_pin, interval_extremes, sign_changes
+from mechval.mechanism import GROUND, Body, Joint
+from mechval.scenario import LinkMass, ScenarioError
 
 LINKS = ("crank", "conrod", "slider")
 PINS = ("O2", "A", "B", "guide")

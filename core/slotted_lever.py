@@ -32,12 +32,12 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from .drive import DriveLaw
-from .inverted_slider import (first_instant, frames_table, pivot_reach, slide_analysis, slide_condition, slide_loop,
+from mechval.drive import DriveLaw
+from mechval.inverted_slider import (first_instant, frames_table, pivot_reach, slide_analysis, slide_condition, slide_loop,
                               slide_signal_map, stroke_time_ratio)
-from .loop import LoopAnalysis, crank_pin
-from .mechanism import GROUND, Body, Joint
-from .scenario import LinkMass, ScenarioError
+from mechval.loop import LoopAnalysis, crank_pin
+from mechval.mechanism import GROUND, Body, Joint
+from mechval.scenario import LinkMass, ScenarioError
 
 LINKS = ("crank", "block", "lever")
 PINS = ("O2", "A", "slot", "O4")

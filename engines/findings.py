@@ -12,10 +12,10 @@ from typing import Iterable
 
 from mechval.findings import Measurement
 
-from .registry import EngineUnavailable, adapter
+from mechval.engines.registry import EngineUnavailable, adapter
 
 #: Engine name → module with FINDINGS (records) and PROBES (key → probe).
-PROBE_MODULES = {"pybullet": "mechval.engines.pybullet_findings"}
+PROBE_MODULES = {"pybullet": "mechval.engines.pybullet.findings"}
 
 
 def measure_findings(engines: Iterable[str]) -> list[Measurement]:

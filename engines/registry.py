@@ -25,7 +25,7 @@ import warnings
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .base import EngineAdapter
+    from mechval.engines.base import EngineAdapter
 
 #: The analytic reference is an adapter too; it is not an engine to compare.
 REFERENCE = "reference"

@@ -160,14 +160,14 @@ def imported_layers(folder: str) -> dict[str, set[str]]:
     """Layer → the files of `folder` that import from it (function-local
     imports included; relative imports stay inside the folder's package)."""
     found: dict[str, set[str]] = {}
-    for path in sorted((ROOT / folder).glob("*.py")):
+    for path in sorted((ROOT / folder).rglob("*.py")):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
             for name in names:
                 layer = layer_of(name)
                 if layer and layer != folder:
-                    found.setdefault(layer, set()).add(path.name)
+                    found.setdefault(layer, set()).add(str(path.relative_to(ROOT / folder)))
     return found
 
 

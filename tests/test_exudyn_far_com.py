@@ -7,7 +7,7 @@ Far beyond the mechanism's size the scene is refused up front
 the run at 1e12 m (exit 1 with a traceback). Within the bound Exudyn's
 Newton stopped ("SolveDynamic terminated") from about 30 m: its absolute
 tolerance was scaled by the forces alone, while the residual's moment rows
-grow with the arm; the scale now takes the arm in (`exudyn_run.force_scale`).
+grow with the arm; the scale now takes the arm in (`exudyn.run.force_scale`).
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ def test_audit_catches_wrong_force_elements_and_drives(monkeypatch):
     """One fault per kind of new element, injected after the adapter's build
     into every element of that kind: exactly those elements' rows differ."""
     engine_or_skip("exudyn")
-    from mechval.engines import exudyn_audit
+    from mechval.engines.exudyn import audit as exudyn_audit
     prepare = exudyn_audit.prepare
 
     def objects_of(mbs):

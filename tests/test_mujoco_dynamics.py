@@ -29,9 +29,9 @@ except ImportError as exc:
     pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"mujoco cannot be imported ({exc})")]
 else:
     pytestmark = pytest.mark.engine
-    from mechval.engines.mujoco import MujocoAdapter
-    from mechval.engines.mujoco_audit import Reader
-    from mechval.engines.mujoco_run import Model
+    from mechval.engines.mujoco.adapter import MujocoAdapter
+    from mechval.engines.mujoco.audit import Reader
+    from mechval.engines.mujoco.run import Model
 
 #: Inverse mode evaluates the equations of motion at the reference's own
 #: state: only rounding separates them (measured ≤ 9e-13 rad, 6e-15 of each

@@ -34,7 +34,7 @@ import dynamic_mechanisms as dm  # noqa: E402
 from mechval.testing.contract import ANGLE, dynamic_errors  # noqa: E402
 from mechval.dynamics import raw_dynamics  # noqa: E402
 from mechval.energy import kinetic_energy, potential_energy  # noqa: E402
-from mechval.engines.mujoco import MujocoAdapter  # noqa: E402
+from mechval.engines.mujoco.adapter import MujocoAdapter  # noqa: E402
 from test_dynamics import SPANS  # noqa: E402
 
 SAMPLES = 101

@@ -68,7 +68,7 @@ print("SOLVES " + json.dumps(seen))
 PROFILE = """
 import cProfile, pstats, json
 from mechval.harness import cli
-import mechval.engines.mujoco, mujoco          # imports are not the command's work
+import mechval.engines.mujoco.adapter, mujoco          # imports are not the command's work
 profile = cProfile.Profile()
 profile.runcall(cli.main, {argv!r})
 stats = pstats.Stats(profile).stats

@@ -1,7 +1,7 @@
 """Audit of the compiled MuJoCo model (see `mechval.audit`).
 
 The model is built by the adapter's own `Model` (the MJCF of
-`mujoco_model`, compiled) and put in the state a forward run starts from
+`model`, compiled) and put in the state a forward run starts from
 (`Model.initial_state`, the reference state at the start of the pre-roll);
 `mj_fwdPosition` then gives every position-dependent quantity. Mechanism
 bodies, tree joints and the loop and drive equalities are found through the
@@ -32,12 +32,11 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (AUDIT_RTOL, SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item,
-                           expected_model, force_item, inertia_readings, joint_item, listing, point_readings, to_body,
-                           torque_law_item)
+from mechval.audit import (AUDIT_RTOL, ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item,
+                           force_item, inertia_readings, joint_item, listing, point_readings, to_body, torque_law_item)
 from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
-from .mujoco_run import Model
+from mechval.engines.mujoco.run import Model
 
 DSBL, ENBL = mujoco.mjtDisableBit, mujoco.mjtEnableBit
 KINDS = {mujoco.mjtJoint.mjJNT_HINGE: "revolute", mujoco.mjtJoint.mjJNT_SLIDE: "prismatic"}
@@ -54,7 +53,7 @@ def audit_model(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any])
     model = Model(mech, times, settings)
     model.initial_state()                    # leaves that state in model.d
     mujoco.mj_fwdPosition(model.m, model.d)
-    return audit(expected_model(mech), Reader(model).readings())
+    return Reader(model).table()
 
 
 def nonzero(values: np.ndarray) -> np.ndarray:
@@ -65,7 +64,7 @@ def nonzero(values: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.any(values.reshape(len(values), -1) != 0, axis=1))
 
 
-class Reader:
+class Reader(ModelReader):
     """Readings of one compiled model in its initial state."""
 
     def __init__(self, model: Model):
@@ -92,14 +91,14 @@ class Reader:
     def readings(self) -> list[Reading]:
         out = [r for body in self.mech.bodies for r in self.body(body.name)]
         out += [r for joint in self.mech.joints for r in self.joint(joint)]
-        damping, other_dampers = self.dampers()
+        damping = self.dampers()[0]
         out += [Reading(joint_item(j.name), "damping", damping[j.name][0], damping[j.name][1])
                 for j in self.mech.joints]
         out += [r for k, drive in enumerate(self.mech.drives) for r in self.drive(k, drive)]
         out += [r for k, force in enumerate(self.mech.forces) for r in self.force(k, force)]
         out += [r for k, law in enumerate(self.mech.torque_drives) for r in self.torque_law(k, law)]
         out += [self.prescribed_motion(v.joint) for v in self.mech.initial_values]
-        return out + self.scene(other_dampers) + self.notes()
+        return out + self.scene() + self.notes()
 
     def prescribed_motion(self, joint: str) -> Reading:
         """The joint equalities that tie a joint integrated from its initial
@@ -405,7 +404,8 @@ class Reader:
     def gravity(self) -> np.ndarray:
         return np.zeros(3) if self.disabled(DSBL.mjDSBL_GRAVITY) else np.array(self.m.opt.gravity)
 
-    def scene(self, other_dampers: list[str]) -> list[Reading]:
+    def scene(self) -> list[Reading]:
+        other_dampers = self.dampers()[1]
         m, d = self.m, self.d
         g = self.gravity()
         flag = f"opt.gravity {' '.join(f'{v:g}' for v in m.opt.gravity)}, gravity flag " + (

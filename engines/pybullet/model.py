@@ -2,7 +2,7 @@
 
 Where each joint goes (multibody joint or loop constraint, which
 multibodies, which reactions are read and which derived) is planned in
-`pybullet_layout`; layout "split" (the default) hangs every joint whose
+`layout`; layout "split" (the default) hangs every joint whose
 sensor is read from the fixed ground as a leaf.
 
 Frames: a tree link's frame sits at its joint point with the body's
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from .base import native_output_silenced, reference_motion
-from .pybullet_layout import Link, plan_layout
+from mechval.engines.base import native_output_silenced, reference_motion
+from mechval.engines.pybullet.layout import Link, plan_layout
 
 with native_output_silenced():      # PyBullet prints its build time on import
     import pybullet as p
@@ -79,7 +79,7 @@ class Model:
     coms: dict[str, tuple[float, float]]
     start: pd.DataFrame
     #: The multibody joints whose reactions are derived, each with the body
-    #: whose balance gives them (`pybullet_layout.Layout.derived`).
+    #: whose balance gives them (`layout.Layout.derived`).
     derived: tuple[tuple[Joint, str], ...] = ()
 
 

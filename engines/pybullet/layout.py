@@ -11,7 +11,7 @@ What decides it (measured on 3.2.7, docs/engines.md):
   from the fixed ground and its child link carries no further moving link
   (the engine findings `pybullet.non-leaf-sensor` and
   `pybullet.slide-sensor-turning-parent`); every other multibody joint's
-  reaction is derived from its child body's balance (`pybullet_slide`).
+  reaction is derived from its child body's balance (`slide`).
 
 Layout "split" (the default): the drive and prismatic joints must not
 close a loop among themselves (refused, naming the joint: PyBullet could
@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 from mechval.mechanism import GROUND, Joint, Mechanism
 
-from .base import Unrepresentable
+from mechval.engines.base import Unrepresentable
 
 Link = tuple[Joint, str, str]   # (joint, parent body, child body)
 

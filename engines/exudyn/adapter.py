@@ -1,5 +1,5 @@
 """Exudyn adapter: a planar multibody model solved by Exudyn's implicit
-second-order solvers (model building in `exudyn_model`).
+second-order solvers (model building in `model`).
 
 Conversion of Exudyn's native outputs to the mechval convention:
 - Body motion: `NodeRigidBody2D` coordinates are displacements of (x_G,
@@ -16,7 +16,7 @@ Conversion of Exudyn's native outputs to the mechval convention:
   is the force on body_i from body_j in body_i's frame (measured with a
   turned guide), so Fij = −R(θi)·ForceLocal. Its third component stays 0
   even under a couple: M is derived from the moment balance of one of the
-  joint's bodies with Exudyn's own motion and reactions (`exudyn_slide`).
+  joint's bodies with Exudyn's own motion and reactions (`slide`).
 - Drives: each a coordinate constraint q1 − q0 = offset(t), on the
   rotation coordinates (revolute) or on a ground coordinate and the slide
   (prismatic); its multiplier λ (`Force` output) gives the effort on
@@ -53,11 +53,11 @@ from mechval.kinematics import dense_grid
 from mechval.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
-from .base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
-from .exudyn_audit import audit_model
-from .exudyn_model import solve
-from .exudyn_run import force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
-from .exudyn_slide import derived_note
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
+from mechval.engines.exudyn.audit import audit_model
+from mechval.engines.exudyn.model import solve
+from mechval.engines.exudyn.run import force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
+from mechval.engines.exudyn.slide import derived_note
 
 #: Newton's absolute tolerance per newton of force scale. Newton stops at the
 #: relative goal (1e-12 of the step's first residual) or at this floor,
@@ -115,7 +115,7 @@ class ExudynAdapter(EngineAdapter):
 
     step_settings = ("timestep", "pre_roll_steps", "spectral_radius")
     #: Every drive a coordinate constraint, springs and torques engine
-    #: elements (`exudyn_model`). Not redundant constraints: measured on
+    #: elements (`model`). Not redundant constraints: measured on
     #: Exudyn 1.13.6 with the parallelogram double four-bar (docs/engines.md).
     features = frozenset(FEATURES) - {"redundant constraints"}
     feature_limits = {"redundant constraints": "its solver stops at the first step on the singular system "

@@ -1,7 +1,7 @@
 """PyBullet findings and their probes (`mechval.findings`).
 
 Each probe builds a tiny multibody in its own DIRECT client with the
-adapter's solver settings (`pybullet_model.configure_solver`: exact Dantzig
+adapter's solver settings (`model.configure_solver`: exact Dantzig
 LCP, joint feedback in world axes), takes a few steps and compares a joint
 sensor's read-out after the last step with the exact value for the state
 that step started from (the state the engine computed its forces at; the
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from mechval.findings import Finding, Measurement
 
-from .base import native_output_silenced
-from .pybullet_model import configure_solver, p   # p: pybullet, imported quietly there
+from mechval.engines.base import native_output_silenced
+from mechval.engines.pybullet.model import configure_solver, p   # p: pybullet, imported quietly there
 
 ENGINE = "pybullet"
 
@@ -41,7 +41,7 @@ SLIDE_SENSOR = Finding(
            "(parent's ω)·(joint rate) that does not shrink with the step. On a slide (the block on a "
            "slotted lever, the rod in a pivoted sleeve) the normal force and the couple read wrong: "
            "N43/F43/M43 errors of 1.5–11× the default bound on users' slide scenes. mechval derives "
-           "these reactions from the sliding body's balance instead (engines/pybullet_slide.py)."),
+           "these reactions from the sliding body's balance instead (engines/pybullet/slide.py)."),
     how=("A lever turning freely about a fixed pivot (1 kg, izz 0.05 kg·m², centre of mass at the pivot) "
          "carries a 0.5 kg block (izz 1e-4 kg·m²) on a free slide, no gravity, from ω = 2 rad/s, "
          "s = 0.2 m, ṡ = 0.5 m/s; 10 steps of 1e-4 s. Exact normal force on the block "

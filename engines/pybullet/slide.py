@@ -8,7 +8,7 @@ pivoted sleeve) it misreports the force and couple by a Coriolis-like term
 in ω·ṡ that does not shrink with the step, and on a joint whose child
 carries further links it misreads the force (engine findings,
 `mechval.engines.findings`), while PyBullet's motion and its other joint
-forces are right. So for each such joint J (`pybullet_layout`: a slide
+forces are right. So for each such joint J (`layout`: a slide
 between two moving bodies, a drive hung below a moving link, a joint
 carrying further links) the adapter reports the reaction that PyBullet's
 own simulation implies: Newton–Euler on the body b whose balance gives it

@@ -1,7 +1,7 @@
-"""One PyBullet run of a generic planar mechanism: build (`pybullet_model`),
+"""One PyBullet run of a generic planar mechanism: build (`model`),
 drive, step and read, converted to the Fij convention (see
-`mechval.engines.pybullet` for the conversions). The adapter (`pybullet`)
-and the model audit (`pybullet_audit`) both build on this module.
+`mechval.engines.pybullet.adapter` for the conversions). The adapter (`pybullet`)
+and the model audit (`audit`) both build on this module.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ import pandas as pd
 from mechval.kinematics import joint_gaps, rigid_velocity, rotate_scalar, slide_motion
 from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyTorque, Drive, Mechanism, SpringDamper, TorqueLaw
 
-from .base import RawRun, RunInfo, Unrepresentable
-from .pybullet_model import (NO_CAP, Model, TreeJoint, build, drive_force_arm, p,  # p: pybullet, imported quietly there
+from mechval.engines.base import RawRun, RunInfo, Unrepresentable
+from mechval.engines.pybullet.model import (NO_CAP, Model, TreeJoint, build, drive_force_arm, p,  # p: pybullet, imported quietly there
                              start_state)
-from .pybullet_slide import NO_EARLIER_STEP, BodyTrack, derived_note, derived_quantities, derived_reaction
+from mechval.engines.pybullet.slide import NO_EARLIER_STEP, BodyTrack, derived_note, derived_quantities, derived_reaction
 
 #: A body's reading: origin x, y (m), wrapped angle (rad), origin vx, vy
 #: (m/s), ω (rad/s), world axes. The ground is always at rest.
@@ -254,7 +254,7 @@ class Stepper:
         for n in range(total):
             sampled = sampled_at(n)
             # A derived reaction needs the positions one step before each
-            # sample (pybullet_slide).
+            # sample (slide).
             if sampled or every_step or (self.model.derived and sampled_at(n + 1)):
                 previous, state = state, self.read_bodies()
             if sampled:
@@ -446,7 +446,7 @@ class Stepper:
 
     def derived_reactions(self, frame: pd.DataFrame, earlier: list, before: list, after: list,
                           loads: list) -> dict[str, np.ndarray]:
-        """Every derived joint's reaction (pybullet_slide), replacing the
+        """Every derived joint's reaction (slide), replacing the
         sensor's reading; each sees those derived before it."""
         tracks = {b: BodyTrack(np.array([s[b] if s else (np.nan,) * 6 for s in earlier]),
                                np.array([s[b] for s in before]), np.array([s[b] for s in after]))

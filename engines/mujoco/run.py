@@ -1,7 +1,7 @@
 """One MuJoCo run of a generic planar mechanism: the compiled model, its
 forward (rollout) and inverse modes, and the read-out converted to the Fij
-convention (see `mechval.engines.mujoco` for the model layout and the
-conversions). The adapter (`mujoco`) and the model audit (`mujoco_audit`)
+convention (see `mechval.engines.mujoco.adapter` for the model layout and the
+conversions). The adapter (`adapter`) and the model audit (`audit`)
 both build on this module.
 """
 
@@ -21,11 +21,11 @@ from mechval.engines.base import Unrepresentable, reference_motion
 from mechval.kinematics import separation_gap, slide_axis
 from mechval.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
 
-from .mujoco_model import (Names, Topology, angle_coefficients, clock_name, coordinates, drive_name, force_name,
+from mechval.engines.mujoco.model import (Names, Topology, angle_coefficients, clock_name, coordinates, drive_name, force_name,
                            force_sites, inertia_shift, loop_name, mjcf, raw_columns, topology, torque_coefficients,
                            torque_law_controls, torque_law_name)
-from .mujoco_rollout import rollout_in_pieces
-from .mujoco_snapshot import Snapshot
+from mechval.engines.mujoco.rollout import rollout_in_pieces
+from mechval.engines.mujoco.snapshot import Snapshot
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 #: Data fields the read-out needs at every sample (a forward run takes time,

@@ -1,4 +1,4 @@
-"""PyBullet 3.2.7 adapter: build (`pybullet_model`), drive, step, read.
+"""PyBullet 3.2.7 adapter: build (`model`), drive, step, read.
 
 Conversion of PyBullet's native output to the Fij convention (docs/conventions.md):
 - A joint modelled as a multibody joint: its force/torque sensor, with
@@ -13,16 +13,16 @@ Conversion of PyBullet's native output to the Fij convention (docs/conventions.m
   link frame sits at the joint point; checked against the reference),
   plus, for a slide drive, the moment its force F (which PyBullet applies
   through the link's centre of mass) has there in the reference, where F
-  acts at point_j: (G − P)×u·F (`pybullet_model.drive_force_arm`).
+  acts at point_j: (G − P)×u·F (`model.drive_force_arm`).
 - A multibody joint that is not a leaf hung from the ground (a slide
   between two moving bodies: the slotted lever's slot, the inverted
   slider's sleeve; a drive hung below a moving link; a joint carrying
-  another link; `pybullet_layout`): F (and a slide's M) are NOT read but
+  another link; `layout`): F (and a slide's M) are NOT read but
   derived from the balance of the joint's child body with PyBullet's own
-  motion and its other joint forces (`pybullet_slide`), because the
+  motion and its other joint forces (`slide`), because the
   sensor misreports a joint whose parent turns (a Coriolis-like term in
   ω·ṡ that does not shrink with dt) or whose child carries further links
-  (the engine finding probes, `pybullet_findings`, measure both). The run
+  (the engine finding probes, `findings`, measure both). The run
   info says so (`derived_reactions`).
 - Drive torque: `getJointState(drive)[3]`, the motor torque on the child
   link (the crank), i.e. T on body_j (negated if the child is body_i).
@@ -55,9 +55,9 @@ from mechval.adapter import FEATURES, as_float, steps_per_interval
 from mechval.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
-from .base import EngineAdapter, PeakRates, RawRun, default_step, peak_rates
-from .pybullet_audit import audit_model
-from .pybullet_run import run_model
+from mechval.engines.base import EngineAdapter, PeakRates, RawRun, default_step, peak_rates
+from mechval.engines.pybullet.audit import audit_model
+from mechval.engines.pybullet.run import run_model
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
 #: base.default_step). PyBullet's rocker sensor converges only as O(dt)

@@ -1,7 +1,7 @@
 """One Exudyn run of a generic planar mechanism: the model prepared for the
 run (pre-roll start, simulation settings) and the read-out converted to the
-Fij convention (see `mechval.engines.exudyn`). The adapter (`exudyn`) and
-the model audit (`exudyn_audit`) both build on this module.
+Fij convention (see `mechval.engines.exudyn.adapter`). The adapter (`exudyn`) and
+the model audit (`audit`) both build on this module.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyPose, Mechanism
 from mechval.planar_scene import SolvedMotion
 from mechval.planar_solver import raw_planar
 
-from .exudyn_model import SOLVERS, ExudynModel, build_model, simulation_settings
-from .exudyn_slide import UNDERIVABLE, slide_couples
+from mechval.engines.exudyn.model import SOLVERS, ExudynModel, build_model, simulation_settings
+from mechval.engines.exudyn.slide import UNDERIVABLE, slide_couples
 
 #: The index-3 force transient after the start shrinks like ρ^n over n
 #: steps, whatever the step (docs/engines.md); the pre-roll lets it decay
@@ -219,7 +219,7 @@ def frame_of(mechanism: Mechanism, model: ExudynModel, state: dict[str, dict[str
 def _slide_couples(mechanism: Mechanism, columns: dict[str, np.ndarray], state: dict[str, dict[str, np.ndarray]],
                    rows: np.ndarray) -> dict[str, str]:
     """Put each slide's couple "J.M" into `columns`, derived from its
-    body's balance (`exudyn_slide`), or NaN; returns the reasons for the
+    body's balance (`slide`), or NaN; returns the reasons for the
     missing ones."""
     slides = [f"{j.name}.M" for j in mechanism.joints if j.kind == "prismatic"]
     if not slides:

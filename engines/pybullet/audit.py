@@ -1,7 +1,7 @@
 """Audit of the built PyBullet model (see `mechval.audit`).
 
-The model is built by the adapter's own `pybullet_model.build`, with the
-step and start of `pybullet_run.step_plan`, in the state a run starts from;
+The model is built by the adapter's own `model.build`, with the
+step and start of `run.step_plan`, in the state a run starts from;
 mechanism bodies, tree joints and loop constraints are found through the
 model's own maps (`Model.bodies`, `tree_joints`, `constraints`).
 
@@ -35,15 +35,14 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (SCENE, Reading, audit, axis_readings, bodies_text, body_item, drive_item,
-                           expected_model, force_item, inertia_readings, joint_item, listing, point_readings,
-                           to_body, torque_law_item)
+from mechval.audit import (ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item, force_item,
+                           inertia_readings, joint_item, listing, point_readings, to_body, torque_law_item)
 from mechval.kinematics import slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism
 
-from .pybullet_run import Stepper, step_plan
-from .base import planned_motion
-from .pybullet_model import BodyHandle, Model, build, p
+from mechval.engines.pybullet.run import Stepper, step_plan
+from mechval.engines.base import planned_motion
+from mechval.engines.pybullet.model import BodyHandle, Model, build, p
 
 ENGINE = "pybullet"
 #: PyBullet's defaults for what has no getter (docs/engines.md, PyBullet 3.2.7).
@@ -63,8 +62,7 @@ def audit_model(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any])
         model = build(mech, dt, settings["layout"], t_start)
     try:
         stepper = Stepper(mech, model, times, per_sample, preroll)
-        reader = Reader(mech, model, model.start, calls, stepper)
-        return audit(expected_model(mech), reader.readings(peak_joint_rate(mech, times)))
+        return Reader(mech, model, model.start, calls, stepper, peak_joint_rate(mech, times)).table()
     finally:
         p.disconnect(model.client)
 
@@ -119,11 +117,13 @@ def quaternion_matrix(q) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-class Reader:
+class Reader(ModelReader):
     """Readings of one built model in its initial state."""
 
-    def __init__(self, mech: Mechanism, model: Model, start: pd.DataFrame, calls: list[Call], stepper: Stepper):
+    def __init__(self, mech: Mechanism, model: Model, start: pd.DataFrame, calls: list[Call], stepper: Stepper,
+                 peak_rate: float):
         self.mech, self.model, self.start, self.calls, self.stepper = mech, model, start, calls, stepper
+        self.peak_rate = peak_rate      # of any joint over the run (`peak_joint_rate`)
         self.c = model.client
         self.name = {(h.uid, h.link): name for name, h in model.bodies.items()} | {(model.ground.uid, -1): GROUND}
         self.uids = sorted({h.uid for h in model.bodies.values()})
@@ -150,10 +150,10 @@ class Reader:
             position, orientation = state[0], state[1]
         return np.array(position), quaternion_matrix(orientation)
 
-    def readings(self, peak_rate: float) -> list[Reading]:
+    def readings(self) -> list[Reading]:
         out = [r for b in self.mech.bodies for r in self.body(b.name)]
         out += [r for j in self.mech.joints for r in self.joint(j)]
-        return out + self.drive() + self.prescribed_motion() + self.torque_laws() + self.forces() + self.scene(peak_rate) + self.notes()
+        return out + self.drive() + self.prescribed_motion() + self.torque_laws() + self.forces() + self.scene() + self.notes()
 
     def body(self, name: str) -> list[Reading]:
         h = self.model.bodies[name]
@@ -289,7 +289,8 @@ class Reader:
                      Reading(item, "torque", torque.torque, applied, "set")]
         return rows
 
-    def scene(self, peak_rate: float) -> list[Reading]:
+    def scene(self) -> list[Reading]:
+        peak_rate = self.peak_rate
         c = self.c
         params = p.getPhysicsEngineParameters(physicsClientId=c)
         g = [params[f"gravityAcceleration{axis}"] for axis in "XYZ"]

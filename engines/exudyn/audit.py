@@ -1,7 +1,7 @@
 """Audit of the assembled Exudyn model (see `mechval.audit`).
 
 The model and the solver settings are built by the adapter's own
-`exudyn_run.prepare` (`exudyn_model.build_model`, `simulation_settings`) and
+`run.prepare` (`model.build_model`, `simulation_settings`) and
 read back with `GetNode`/`GetObject`/`GetMarker`/`GetLoad`. Mechanism bodies
 are found through the model's sensors (`ExudynModel.body_sensors` → node →
 the rigid body on it), joints through `joint_sensors`, the drive through
@@ -31,13 +31,13 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (SCENE, Reading, audit, axis_readings, body_item, bodies_text, drive_item, expected_model,
-                           force_item, joint_item, listing, point_readings, to_body, torque_law_item)
+from mechval.audit import (ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item, force_item,
+                           joint_item, listing, point_readings, to_body, torque_law_item)
 from mechval.kinematics import rotate
 from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
-from .exudyn_run import prepare
-from .exudyn_model import ExudynModel, TorqueLawLoad, torque_law_load_names
+from mechval.engines.exudyn.run import prepare
+from mechval.engines.exudyn.model import ExudynModel, TorqueLawLoad, torque_law_load_names
 
 ENGINE = "exudyn"
 #: Item types the adapter's model is made of; anything else is listed.
@@ -50,15 +50,16 @@ ROUNDING = 1e-12
 def audit_model(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
     """The audit table of the Exudyn model the adapter builds."""
     model, simulation, t0 = prepare(mech, times, settings)
-    reader = Reader(mech, model, model.start, t0, np.asarray(times, dtype=float))
-    return audit(expected_model(mech), reader.readings() + notes(settings, simulation))
+    return Reader(mech, model, t0, np.asarray(times, dtype=float), settings, simulation).table()
 
 
-class Reader:
+class Reader(ModelReader):
     """Readings of one assembled system in its initial state."""
 
-    def __init__(self, mech: Mechanism, model: ExudynModel, start: pd.DataFrame, t0: float, times: np.ndarray):
-        self.mech, self.model, self.mbs, self.start, self.t0 = mech, model, model.mbs, start, t0
+    def __init__(self, mech: Mechanism, model: ExudynModel, t0: float, times: np.ndarray,
+                 settings: Mapping[str, Any], simulation):
+        self.mech, self.model, self.mbs, self.start, self.t0 = mech, model, model.mbs, model.start, t0
+        self.settings, self.simulation = settings, simulation     # the solver's, for the notes
         self.times = times      # the run's output instants
         data = model.mbs.systemData
         self.objects = [self.mbs.GetObject(i) for i in range(data.NumberOfObjects())]
@@ -77,7 +78,7 @@ class Reader:
     def readings(self) -> list[Reading]:
         out = [r for body in self.mech.bodies for r in self.body(body.name)]
         out += [r for joint in self.mech.joints for r in self.joint(joint)]
-        dampers, other_dampers, springs = self.dampers()
+        dampers = self.dampers()[0]
         out += [Reading(joint_item(j.name), "damping", dampers.get(j.name, 0.0),
                         "ConnectorCoordinateSpringDamper on the joint's relative coordinate"
                         if j.name in dampers else "no spring-damper on this joint's coordinate")
@@ -86,7 +87,7 @@ class Reader:
         out += [self.prescribed(value.joint) for value in self.mech.initial_values]
         out += [r for force in self.mech.forces for r in self.force(force)]
         out += [r for law in self.mech.torque_drives for r in self.torque_law(law)]
-        return out + self.scene(other_dampers, springs)
+        return out + self.scene() + self.notes()
 
     # -- bodies and points --------------------------------------------------------------
 
@@ -303,7 +304,7 @@ class Reader:
     # -- force elements ----------------------------------------------------------
 
     def force(self, force: SpringDamper | BodyTorque) -> list[Reading]:
-        """The engine element named after the force (`exudyn_model`), read
+        """The engine element named after the force (`model`), read
         back: a spring-damper's markers, stiffness, free length and damping
         (any force offset, velocity offset or user function is listed); a
         torque load's body and vector."""
@@ -390,7 +391,8 @@ class Reader:
                       if b == body and self.objects[i]["objectType"] == "RigidBody2D")
         return float(self.mbs.GetNode(int(self.objects[number]["nodeNumber"]))["referenceCoordinates"][2])
 
-    def scene(self, other_dampers: list[str], springs: list[str]) -> list[Reading]:
+    def scene(self) -> list[Reading]:
+        _, other_dampers, springs = self.dampers()
         gravity, other_loads = self.gravity()
         unknown = [f"object {i} ({o['objectType']})" for i, o in enumerate(self.objects)
                    if i not in self.used and o["objectType"] not in ("Ground", "RigidBody2D")]
@@ -439,21 +441,20 @@ class Reader:
         other += [f"weight of {b} differs from the others" for b in uneven]
         return [float(v) for v in first], other
 
-
-def notes(settings: Mapping[str, Any], simulation) -> list[Reading]:
-    ti = simulation.timeIntegration
-    radius = ti.generalizedAlpha.spectralRadius
-    solver = settings["solver"]
-    damping = (f"generalized-α, spectral radius {radius:g}: numerical dissipation of high frequencies, "
-               "not a physical damper" if solver == "index3" else
-               "trapezoidal (Newmark γ ½, β ¼): no numerical dissipation; the spectral radius setting is unused")
-    return [
-        Reading(ENGINE, "solver", f"{solver}, dt {settings['timestep']:.6g} s, {int(ti.numberOfSteps)} steps, "
-                                  f"adaptive step {'on' if ti.adaptiveStep else 'off'}", damping, "note"),
-        Reading(ENGINE, "Newton", f"{'modified' if ti.newton.useModifiedNewton else 'full'}, relative "
-                                  f"{ti.newton.relativeTolerance:g}, absolute {ti.newton.absoluteTolerance:.3g}",
-                "Numerical.", "note"),
-        Reading(ENGINE, "initial accelerations",
-                "computed by Exudyn" if ti.generalizedAlpha.computeInitialAccelerations else "the reference's",
-                "Exudyn's own solve ignores φ'' of the drive (docs/engines.md).", "note"),
-    ]
+    def notes(self) -> list[Reading]:
+        settings, ti = self.settings, self.simulation.timeIntegration
+        radius = ti.generalizedAlpha.spectralRadius
+        solver = settings["solver"]
+        damping = (f"generalized-α, spectral radius {radius:g}: numerical dissipation of high frequencies, "
+                   "not a physical damper" if solver == "index3" else
+                   "trapezoidal (Newmark γ ½, β ¼): no numerical dissipation; the spectral radius setting is unused")
+        return [
+            Reading(ENGINE, "solver", f"{solver}, dt {settings['timestep']:.6g} s, {int(ti.numberOfSteps)} steps, "
+                                      f"adaptive step {'on' if ti.adaptiveStep else 'off'}", damping, "note"),
+            Reading(ENGINE, "Newton", f"{'modified' if ti.newton.useModifiedNewton else 'full'}, relative "
+                                      f"{ti.newton.relativeTolerance:g}, absolute {ti.newton.absoluteTolerance:.3g}",
+                    "Numerical.", "note"),
+            Reading(ENGINE, "initial accelerations",
+                    "computed by Exudyn" if ti.generalizedAlpha.computeInitialAccelerations else "the reference's",
+                    "Exudyn's own solve ignores φ'' of the drive (docs/engines.md).", "note"),
+        ]

@@ -3,7 +3,7 @@ moment balance of one of its bodies with Exudyn's own motion and reactions.
 
 Why: `ObjectJointPrismatic2D` reports no couple (its `ForceLocal[2]` stays
 0 under any couple), while everything else on the body is at hand. As the
-PyBullet adapter does for its slides (`pybullet_slide`), the couple is the
+PyBullet adapter does for its slides (the PyBullet adapter's `slide`), the couple is the
 one the engine's own solution implies. Euler's equation about the centre of
 mass G of a moving body b (Norton, *Design of Machinery*, §11.4,
 eq. 11.1c):

@@ -1,6 +1,6 @@
 """MuJoCo adapter: the generic planar mechanism in MuJoCo 4.0.
 
-The model (see `mujoco_model`): a spanning tree of hinge/slide joints, each
+The model (see `model`): a spanning tree of hinge/slide joints, each
 loop closed by an equality `connect` at one revolute pin, each driven joint
 tied by a joint equality to its own heavy clock whose coordinate is φ(t),
 dampers as fixed tendons, spring-dampers as spatial tendons, body torques as
@@ -102,9 +102,9 @@ from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, p
 from mechval.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
-from .mujoco_audit import audit_model
-from .mujoco_model import INTEGRATORS, SOLIMP
-from .mujoco_run import Model, warnings_silenced
+from mechval.engines.mujoco.audit import audit_model
+from mechval.engines.mujoco.model import INTEGRATORS, SOLIMP
+from mechval.engines.mujoco.run import Model, warnings_silenced
 
 MODES = ("forward", "inverse")
 class MujocoAdapter(EngineAdapter):

@@ -52,7 +52,7 @@ import pandas as pd
 from mechval.kinematics import rotate, slide_motion
 from mechval.mechanism import GROUND, Joint, Mechanism, SpringDamper
 
-from .base import Unrepresentable
+from mechval.engines.base import Unrepresentable
 from mechval.settings import Number, Numbers
 
 CLOCK = "mechval_clock"

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 
 #: The analytic reference is an adapter too; it is not an engine to compare.
 REFERENCE = "reference"
-REFERENCE_ADAPTER = "mechval.reference:ReferenceAdapter"
+REFERENCE_ADAPTER = "mechval.reference.adapter:ReferenceAdapter"
 ENTRY_POINT_GROUP = "mechval.engines"
 #: The distribution whose entry points are the built-in engines.
 OWN_DISTRIBUTION = "mechval"

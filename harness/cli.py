@@ -16,10 +16,10 @@ from typing import Callable, ContextManager
 import pandas as pd
 from tqdm import tqdm
 
-from mechval.analysis import analyse, format_analysis
-from mechval.audit import format_audit
-from mechval.compare import passed
-from mechval.cost_tables import cheapest, convergence, format_tables
+from mechval.reference.analysis import analyse, format_analysis
+from mechval.records.audit import format_audit
+from mechval.judging.compare import passed
+from mechval.judging.cost_tables import cheapest, convergence, format_tables
 from mechval.engines.findings import measure_findings
 from mechval.engines.registry import REFERENCE, EngineUnavailable, UnknownEngine, adapter, availability, engine_names
 from mechval.reports.build import provenance, summary_markdown, write_report
@@ -27,12 +27,12 @@ from mechval.reports.cost_report import cost_section, write_cost_report, write_t
 from mechval.reports.audit import audit_section
 from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
-from mechval.outcome import Outcome
-from mechval.outputs import not_a_regular_file
-from mechval.scenario import Scenario, ScenarioError, one_line
+from mechval.records.outcome import Outcome
+from mechval.records.outputs import not_a_regular_file
+from mechval.model.scenario import Scenario, ScenarioError, one_line
 from mechval.scenarios import builtin_names, builtin_path, load
 from mechval.scenarios.export import planar_file
-from mechval.signals import SIGNAL_CLASS, Signals
+from mechval.records.signals import SIGNAL_CLASS, Signals
 
 from .audit_run import audit_all, audit_scenario
 from .baseline import LinkInside, UnsafeName

@@ -15,7 +15,7 @@ median of the repeats, per simulated second. The adapters' own
 as `engine_s_per_sim_s`. The reference is timed the same way (the
 same `simulate` call, its adapter's) and every time is also given as a ratio to it.
 
-Errors are those of `mechval.compare.compare`, the largest per signal
+Errors are those of `mechval.judging.compare.compare`, the largest per signal
 class: relative to the signal's peak for relative classes, absolute (rad,
 m) for angle and position; "force+torque" is the larger of the two
 relative classes. Failures (an exception, a crashed or hung worker,
@@ -32,12 +32,12 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from mechval.compare import compare
-from mechval.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE
+from mechval.judging.compare import compare
+from mechval.judging.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE
 from mechval.engines.base import peak_rates
 from mechval.engines.registry import adapter
-from mechval.scenario import Scenario, Tolerance, require_unique_names
-from mechval.signals import SIGNAL_CLASS, Signals
+from mechval.model.scenario import Scenario, Tolerance, require_unique_names
+from mechval.records.signals import SIGNAL_CLASS, Signals
 
 from .executors import Done, Executor
 from .plan import Plan, planned, scenario_of

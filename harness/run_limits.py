@@ -13,8 +13,8 @@ from typing import Any, Mapping
 
 from mechval.adapter import EngineAdapter, as_float
 from mechval.engines.registry import adapter
-from mechval.scenario import Scenario, ScenarioError
-from mechval.limits import signal_count
+from mechval.model.scenario import Scenario, ScenarioError
+from mechval.model.limits import signal_count
 
 from .plan import prepare
 

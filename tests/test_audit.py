@@ -13,11 +13,11 @@ import pytest
 
 from conftest import BUILTIN, builtin_scenario, engine_or_skip
 from mechval.harness import cli
-from mechval.audit import (ABSENT_EFFECTS, AUDIT_RTOL, AS_SET, DIFFERS, MATCH, MISSING, NOTE, SCENE, Expectation,
+from mechval.records.audit import (ABSENT_EFFECTS, AUDIT_RTOL, AS_SET, DIFFERS, MATCH, MISSING, NOTE, SCENE, Expectation,
                            Reading, audit, expected_model, failures, format_audit)
-from mechval.audit import AuditResult, ModelReader
+from mechval.records.audit import AuditResult, ModelReader
 from mechval.harness.audit_run import audit_scenario
-from mechval.linkages import build_mechanism
+from mechval.model.linkages import build_mechanism
 from mechval.reports.audit import audit_section
 from mechval.harness.simulate import simulate
 

@@ -12,7 +12,7 @@ import pytest
 
 from conftest import builtin_reference
 from mechval.scenarios import builtin_path
-from mechval.signals import signal_names
+from mechval.records.signals import signal_names
 
 MECHVAL = str(Path(sys.executable).parent / "mechval")
 

@@ -21,11 +21,11 @@ import pytest
 
 from conftest import ENGINES, engine_or_skip
 from mechval.harness.cli import build_parser
-from mechval.linkages import LINKAGES, build_mechanism
+from mechval.model.linkages import LINKAGES, build_mechanism
 from mechval.harness.simulate import simulate
-from mechval.scenario import DEFAULT_TOLERANCE
+from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.scenarios import load, parse
-from mechval.signals import SIGNAL_CLASS, signal_names
+from mechval.records.signals import SIGNAL_CLASS, signal_names
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"

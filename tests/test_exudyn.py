@@ -17,15 +17,15 @@ import andrews as A
 import dynamic_mechanisms as dm
 from mechval.testing.contract import ANGLE, AdapterContract, dynamic_errors
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
-from mechval.audit import audit, expected_model, failures
-from mechval.compare import compare
+from mechval.records.audit import audit, expected_model, failures
+from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance, discrepancy_table
-from mechval.drive import DriveLaw
-from mechval.dynamics import raw_dynamics
-from mechval.linkages import build_mechanism
+from mechval.model.drive import DriveLaw
+from mechval.reference.dynamics import raw_dynamics
+from mechval.model.linkages import build_mechanism
 from mechval.adapter import Unrepresentable
-from mechval.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, InitialValue, Joint, Mechanism
-from mechval.reference import raw_reference
+from mechval.model.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, InitialValue, Joint, Mechanism
+from mechval.reference.adapter import raw_reference
 from mechval.scenarios import parse
 from mechval.testing.scenes import fourbar, slider_crank
 

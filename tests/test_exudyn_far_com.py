@@ -2,7 +2,7 @@
 of mass d metres out along it).
 
 Far beyond the mechanism's size the scene is refused up front
-(`mechval.limits.MAX_COM_DISTANCE`): Exudyn had called the four-bar
+(`mechval.model.limits.MAX_COM_DISTANCE`): Exudyn had called the four-bar
 "redundant constraints" at d = 1e9 m, and the reference's assembly crashed
 the run at 1e12 m (exit 1 with a traceback). Within the bound Exudyn's
 Newton stopped ("SolveDynamic terminated") from about 30 m: its absolute
@@ -15,7 +15,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import engine_or_skip
-from mechval.compare import compare, passed
+from mechval.judging.compare import compare, passed
 from mechval.testing import discrepancy_table
 from mechval.harness import cli
 from mechval.harness.simulate import simulate

@@ -13,12 +13,12 @@ import tomllib
 import pytest
 
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
-from mechval.audit import failures
-from mechval.compare import compare, passed
+from mechval.records.audit import failures
+from mechval.judging.compare import compare, passed
 from mechval.testing import discrepancy_table
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, Body, Joint, Mechanism
+from mechval.model.linkages import build_mechanism
+from mechval.model.mechanism import GROUND, Body, Joint, Mechanism
 from mechval.scenarios import parse
 
 pytestmark = pytest.mark.engine

@@ -14,11 +14,11 @@ import pytest
 
 from conftest import builtin_scenario, engine_or_skip
 from mechval.adapter import mechanism_features
-from mechval.audit import failures
+from mechval.records.audit import failures
 from mechval.harness.audit_run import audit_scenario
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
-from mechval.scenario import ScenarioError
+from mechval.model.linkages import build_mechanism
+from mechval.model.scenario import ScenarioError
 from planar_contract import PlanarContract
 from planar_scenes import scene
 

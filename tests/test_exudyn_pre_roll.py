@@ -30,7 +30,7 @@ import pandas as pd
 import pytest
 
 from conftest import engine_or_skip
-from mechval.compare import compare, passed
+from mechval.judging.compare import compare, passed
 from mechval.testing import discrepancy_table
 from mechval.harness import cli
 from mechval.harness.simulate import simulate

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mechval.findings import Finding, Measurement
+from mechval.records.findings import Finding, Measurement
 from mechval.reports.findings import findings_section
 
 #: Figures measured on PyBullet 3.2.7: the slide sensor reads N and M at

@@ -11,12 +11,12 @@ import pytest
 
 from mechval.testing.contract import AdapterContract
 from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
-from mechval.compare import compare, passed
+from mechval.judging.compare import compare, passed
 from mechval.testing import assert_within_tolerance, discrepancy_table
-from mechval.drive import DriveLaw
-from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, Body, Drive, Joint, Mechanism
-from mechval.newton_euler import reactions
+from mechval.model.drive import DriveLaw
+from mechval.model.linkages import build_mechanism
+from mechval.model.mechanism import GROUND, Body, Drive, Joint, Mechanism
+from mechval.reference.newton_euler import reactions
 from mechval.scenarios import parse
 from scales import motion_scales
 from mechval.testing.scenes import fourbar, slider_crank
@@ -422,7 +422,7 @@ def test_masses_mujoco_cannot_hold_are_refused_with_the_key(engine, monkeypatch)
 
     from mechval.engines.base import Unrepresentable
     from mechval.harness import plan as harness_plan
-    from mechval.scenario import ScenarioError
+    from mechval.model.scenario import ScenarioError
     scenario = builtin_scenario("slider-crank")
     mech = build_mechanism(scenario)
     light = dataclasses.replace(mech, bodies=tuple(dataclasses.replace(b, mass=1e-300) if b.name == "crank" else b

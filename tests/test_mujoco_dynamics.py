@@ -16,10 +16,10 @@ import pytest
 import andrews as A
 import dynamic_mechanisms as dm
 from mechval.testing.contract import ANGLE, dynamic_errors
-from mechval.audit import audit, expected_model, failures, format_audit
-from mechval.dynamics import raw_dynamics
-from mechval.mechanism import TorqueLaw
-from mechval.scenario import ScenarioError
+from mechval.records.audit import audit, expected_model, failures, format_audit
+from mechval.reference.dynamics import raw_dynamics
+from mechval.model.mechanism import TorqueLaw
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import parse
 from mechval.testing.scenes import fourbar
 

@@ -17,15 +17,15 @@ import dynamic_mechanisms as dm
 from mechval.testing.contract import MOVING_SLIDE, AdapterContract, dynamic_errors
 from conftest import engine_or_skip
 from mechval.adapter import Unrepresentable
-from mechval.audit import failures, format_audit, torque_law_item
-from mechval.dynamics import raw_dynamics
-from mechval.mechanism import InitialValue, TorqueLaw
-from mechval.planar_solver import default_pose
-from mechval.compare import compare
+from mechval.records.audit import failures, format_audit, torque_law_item
+from mechval.reference.dynamics import raw_dynamics
+from mechval.model.mechanism import InitialValue, TorqueLaw
+from mechval.reference.planar.solver import default_pose
+from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance
-from mechval.linkages import build_mechanism
+from mechval.model.linkages import build_mechanism
 from mechval.scenarios import parse
-from mechval.signals import canonical_signals
+from mechval.records.signals import canonical_signals
 from mechval.testing.scenes import fourbar, slider_crank
 from test_linkages_more import VARIANTS as SLIDE_VARIANTS
 

@@ -21,7 +21,7 @@ MUJOCO = "mechval.engines.mujoco.adapter:MujocoAdapter"
 TINY_ADAPTER = '''
 """A third-party engine adapter, installed as its own distribution."""
 from mechval.engines.base import EngineAdapter, RawRun
-from mechval.reference import raw_reference
+from mechval.reference.adapter import raw_reference
 
 
 class TinyAdapter(EngineAdapter):

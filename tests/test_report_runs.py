@@ -12,7 +12,7 @@ import pytest
 
 from mechval.adapter import RunInfo
 from mechval.harness.runner import discrepancies
-from mechval.outcome import Outcome, Task
+from mechval.records.outcome import Outcome, Task
 from mechval.harness.simulate import simulate
 from mechval.reports import build, runs
 from mechval.scenarios import parse

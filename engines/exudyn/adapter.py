@@ -49,8 +49,8 @@ import numpy as np
 import pandas as pd
 
 from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
-from mechval.kinematics import dense_grid
-from mechval.mechanism import Mechanism
+from mechval.model.kinematics import dense_grid
+from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates

@@ -1,4 +1,4 @@
-"""Audit of the assembled Exudyn model (see `mechval.audit`).
+"""Audit of the assembled Exudyn model (see `mechval.records.audit`).
 
 The model and the solver settings are built by the adapter's own
 `run.prepare` (`model.build_model`, `simulation_settings`) and
@@ -14,7 +14,7 @@ and izz is `inertia` (about the reference point) minus m·|centerOfMass|²;
 a marker's world point is the same transform of its localPosition (the
 ground's: its reference position and rotation). World points are expressed
 in the bodies' frames at the reference pose of the model's start t0
-(`mechval.audit.to_body`). A coordinate spring-damper is matched to the
+(`mechval.records.audit.to_body`). A coordinate spring-damper is matched to the
 joint whose relative coordinate it acts on: the rotation coordinates of the
 joint's two bodies (revolute), or their relative translation along the
 joint's axis (prismatic). The drive law is read by evaluating the drive
@@ -31,10 +31,10 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item, force_item,
+from mechval.records.audit import (ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item, force_item,
                            joint_item, listing, point_readings, to_body, torque_law_item)
-from mechval.kinematics import rotate
-from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
+from mechval.model.kinematics import rotate
+from mechval.model.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 from mechval.engines.exudyn.run import prepare
 from mechval.engines.exudyn.model import ExudynModel, TorqueLawLoad, torque_law_load_names

@@ -37,9 +37,9 @@ import numpy as np
 import pandas as pd
 
 from mechval.engines.base import reference_motion
-from mechval.audit import force_item, torque_law_item
-from mechval.kinematics import point_motion, rotate
-from mechval.mechanism import GROUND, Body, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
+from mechval.records.audit import force_item, torque_law_item
+from mechval.model.kinematics import point_motion, rotate
+from mechval.model.mechanism import GROUND, Body, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 #: The adapter's solver names (setting "solver") → Exudyn's solvers.
 SOLVERS = {"index2": exu.DynamicSolverType.TrapezoidalIndex2, "index3": exu.DynamicSolverType.GeneralizedAlpha}

@@ -12,12 +12,12 @@ import exudyn as exu
 import numpy as np
 import pandas as pd
 
-from mechval import engine_inputs
-from mechval.health import drive_errors
-from mechval.kinematics import joint_gaps, point_motion, rotate
-from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyPose, Mechanism
-from mechval.planar_scene import SolvedMotion
-from mechval.planar_solver import raw_planar
+from mechval.records import engine_inputs
+from mechval.judging.health import drive_errors
+from mechval.model.kinematics import joint_gaps, point_motion, rotate
+from mechval.model.mechanism import GROUND, MOTION_QUANTITIES, BodyPose, Mechanism
+from mechval.reference.planar.scene import SolvedMotion
+from mechval.reference.planar.solver import raw_planar
 
 from mechval.engines.exudyn.model import SOLVERS, ExudynModel, build_model, simulation_settings
 from mechval.engines.exudyn.slide import UNDERIVABLE, slide_couples
@@ -94,7 +94,7 @@ def pre_roll_start(mechanism: Mechanism, times: np.ndarray, steps: int, dt: floa
     first = mechanism.motion(times[:1])
     while steps:
         t = float(times[0]) - dt * np.arange(steps, -1, -1)
-        # One read of the run's inputs (`mechval.engine_inputs`): the state
+        # One read of the run's inputs (`mechval.records.engine_inputs`): the state
         # at the pre-roll's start, or none where it does not close.
         start = engine_inputs.read(mechanism, "start on the run's branch", t, None,
                                    lambda: _start_on_the_run_s_branch(mechanism, t, first))

@@ -19,7 +19,7 @@ Modes (setting "mode"):
   A torque-driven or free mechanism (`Mechanism.forward_dynamics`) starts
   at the first instant, with no pre-roll (there is no prescribed path to
   pre-roll along), from the forward-dynamics reference's consistent state
-  there (`mechval.dynamics.raw_dynamics` at times[:1]); only its remaining
+  there (`mechval.reference.dynamics.raw_dynamics` at times[:1]); only its remaining
   prescribed drives get clocks. Each `TorqueLaw` is an actuator on a fixed
   tendon whose length is the joint's θj − θi, with integrator activation
   dynamics and gain 1: its force is its activation, which starts at T(t0)
@@ -99,7 +99,7 @@ import pandas as pd
 
 from mechval.adapter import FEATURES, PeakRates, as_float, ceil_or_inf, steps_per_interval
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
-from mechval.mechanism import Mechanism
+from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from mechval.engines.mujoco.audit import audit_model

@@ -1,4 +1,4 @@
-"""Audit of the compiled MuJoCo model (see `mechval.audit`).
+"""Audit of the compiled MuJoCo model (see `mechval.records.audit`).
 
 The model is built by the adapter's own `Model` (the MJCF of
 `model`, compiled) and put in the state a forward run starts from
@@ -15,7 +15,7 @@ Jacobian; neither is counted again as a joint spring, damper or motor.
 Conversion to the Mechanism's conventions: positions are MuJoCo's world
 positions in that state (`xipos` for centres of mass, `xanchor` for tree
 joints, the connect's sites for the cut pin) expressed in each body's frame
-at the reference pose of that instant (`mechval.audit.to_body`); inertia is
+at the reference pose of that instant (`mechval.records.audit.to_body`); inertia is
 `ximat·diag(body_inertia)·ximatᵀ` (world axes, about the centre of mass);
 a joint's damping is the sum of every damper whose rate is that joint's
 relative rate: each dof damper and fixed tendon damper is matched by
@@ -32,9 +32,9 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (AUDIT_RTOL, ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item,
+from mechval.records.audit import (AUDIT_RTOL, ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item,
                            force_item, inertia_readings, joint_item, listing, point_readings, to_body, torque_law_item)
-from mechval.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
+from mechval.model.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
 
 from mechval.engines.mujoco.run import Model
 

@@ -49,8 +49,8 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.kinematics import rotate, slide_motion
-from mechval.mechanism import GROUND, Joint, Mechanism, SpringDamper
+from mechval.model.kinematics import rotate, slide_motion
+from mechval.model.mechanism import GROUND, Joint, Mechanism, SpringDamper
 
 from mechval.engines.base import Unrepresentable
 from mechval.settings import Number, Numbers
@@ -463,7 +463,7 @@ def coordinates(mech: Mechanism, topo: Topology,
     reference body motion (used for the initial state and inverse mode).
 
     Hinge: q = θchild − θparent. Slide: q = sign·s with s the travel of P_j
-    from P_i along the axis (`mechval.kinematics.slide_motion`).
+    from P_i along the axis (`mechval.model.kinematics.slide_motion`).
     """
     t = motion["t"]
     zero = np.zeros(len(t))

@@ -16,10 +16,10 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from mechval import engine_inputs
+from mechval.records import engine_inputs
 from mechval.engines.base import Unrepresentable, reference_motion
-from mechval.kinematics import separation_gap, slide_axis
-from mechval.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
+from mechval.model.kinematics import separation_gap, slide_axis
+from mechval.model.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
 
 from mechval.engines.mujoco.model import (Names, Topology, angle_coefficients, clock_name, coordinates, drive_name, force_name,
                            force_sites, inertia_shift, loop_name, mjcf, raw_columns, topology, torque_coefficients,
@@ -147,7 +147,7 @@ class Model:
         consistent state there (its pre-roll is 0)."""
         while preroll > 0:
             t = float(self.times[0]) - preroll * dt + dt * np.arange(preroll + 1)
-            # One read of the run's inputs (`mechval.engine_inputs`): the
+            # One read of the run's inputs (`mechval.records.engine_inputs`): the
             # first row, or none where the loop does not close throughout.
             start = engine_inputs.read(self.mech, "closing start", t, None, lambda: closing_start(self.mech, t))
             if len(start):

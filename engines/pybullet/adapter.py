@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 
 from mechval.adapter import FEATURES, as_float, steps_per_interval
-from mechval.mechanism import Mechanism
+from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from mechval.engines.base import EngineAdapter, PeakRates, RawRun, default_step, peak_rates

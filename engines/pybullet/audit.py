@@ -1,4 +1,4 @@
-"""Audit of the built PyBullet model (see `mechval.audit`).
+"""Audit of the built PyBullet model (see `mechval.records.audit`).
 
 The model is built by the adapter's own `model.build`, with the
 step and start of `run.step_plan`, in the state a run starts from;
@@ -24,7 +24,7 @@ p_G − R_link·p_inertial with R_link = R_G·R_inertialᵀ (computed here in
 double: `getLinkState[4]` rounds to float32, measured); a constraint's
 pivot is relative to each side's centre-of-mass frame. World points are
 expressed in the bodies' frames at the reference pose of the build's start
-(`mechval.audit.to_body`); inertia is R_G·diag·R_Gᵀ.
+(`mechval.records.audit.to_body`); inertia is R_G·diag·R_Gᵀ.
 """
 
 from __future__ import annotations
@@ -35,10 +35,10 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.audit import (ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item, force_item,
+from mechval.records.audit import (ModelReader, Reading, SCENE, axis_readings, bodies_text, body_item, drive_item, force_item,
                            inertia_readings, joint_item, listing, point_readings, to_body, torque_law_item)
-from mechval.kinematics import slide_motion
-from mechval.mechanism import GROUND, Joint, Mechanism
+from mechval.model.kinematics import slide_motion
+from mechval.model.mechanism import GROUND, Joint, Mechanism
 
 from mechval.engines.pybullet.run import Stepper, step_plan
 from mechval.engines.base import planned_motion

@@ -1,4 +1,4 @@
-"""PyBullet findings and their probes (`mechval.findings`).
+"""PyBullet findings and their probes (`mechval.records.findings`).
 
 Each probe builds a tiny multibody in its own DIRECT client with the
 adapter's solver settings (`model.configure_solver`: exact Dantzig
@@ -26,7 +26,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from mechval.findings import Finding, Measurement
+from mechval.records.findings import Finding, Measurement
 
 from mechval.engines.base import native_output_silenced
 from mechval.engines.pybullet.model import configure_solver, p   # p: pybullet, imported quietly there

@@ -37,7 +37,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
-from mechval.mechanism import GROUND, Joint, Mechanism
+from mechval.model.mechanism import GROUND, Joint, Mechanism
 
 from mechval.engines.base import Unrepresentable
 

@@ -26,8 +26,8 @@ from mechval.engines.pybullet.layout import Link, plan_layout
 with native_output_silenced():      # PyBullet prints its build time on import
     import pybullet as p
 
-from mechval.kinematics import point_motion, point_position, rotate_scalar, separation, slide_axis, slide_motion
-from mechval.mechanism import GROUND, Joint, Mechanism
+from mechval.model.kinematics import point_motion, point_position, rotate_scalar, separation, slide_axis, slide_motion
+from mechval.model.mechanism import GROUND, Joint, Mechanism
 
 #: Force/impulse caps meant as "no cap": far above any kN-scale reaction,
 #: far below overflow.

@@ -16,8 +16,8 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.kinematics import joint_gaps, rigid_velocity, rotate_scalar, slide_motion
-from mechval.mechanism import GROUND, MOTION_QUANTITIES, BodyTorque, Drive, Mechanism, SpringDamper, TorqueLaw
+from mechval.model.kinematics import joint_gaps, rigid_velocity, rotate_scalar, slide_motion
+from mechval.model.mechanism import GROUND, MOTION_QUANTITIES, BodyTorque, Drive, Mechanism, SpringDamper, TorqueLaw
 
 from mechval.engines.base import RawRun, RunInfo, Unrepresentable
 from mechval.engines.pybullet.model import (NO_CAP, Model, TreeJoint, build, drive_force_arm, p,  # p: pybullet, imported quietly there

@@ -47,8 +47,8 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-from mechval.kinematics import rotate
-from mechval.mechanism import GROUND, Joint, Mechanism
+from mechval.model.kinematics import rotate
+from mechval.model.mechanism import GROUND, Joint, Mechanism
 
 #: What the run info says about each derived joint (users see that the
 #: column is derived, not read).

@@ -44,7 +44,7 @@ for package, folder in list(finder.MAPPING.items()):
 #: its engine workers too (in this process, each task a pickled copy).
 COUNT = """
 import pickle, json
-from mechval import planar_solver
+from mechval.reference.planar import solver as planar_solver
 from mechval.harness import cli, runner
 from mechval.harness.executors import Done
 seen = []

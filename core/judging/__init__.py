@@ -1,0 +1,3 @@
+"""Judging signals: the comparison rule (compare), run health (health),
+energy and power balance (energy), resultant constraint loads
+(resultants), and reading cost tables (cost_tables)."""

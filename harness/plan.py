@@ -26,7 +26,7 @@ from typing import Any, Iterable, Mapping
 from mechval.adapter import EngineAdapter, PeakRates, ResolvedSettings, Unrepresentable, mechanism_features
 from mechval.engines.base import peak_rates
 from mechval.engines.registry import adapter
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.mechanism import Mechanism
 from mechval.model.scenario import Scenario, ScenarioError
 

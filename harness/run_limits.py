@@ -14,7 +14,7 @@ from typing import Any, Mapping
 from mechval.adapter import EngineAdapter, as_float
 from mechval.engines.registry import adapter
 from mechval.model.scenario import Scenario, ScenarioError
-from mechval.model.limits import signal_count
+from mechval.reference.limits import signal_count
 
 from .plan import prepare
 

@@ -19,7 +19,7 @@ from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 import mechval
 from mechval.judging.compare import GROWTH_COLUMNS, HEALTH_BOUNDS
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.records.outcome import Outcome
 from mechval.model.scenario import Scenario, one_line
 from mechval.records.signals import Signals, write_folder_atomically

@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Mapping
 
 from mechval.reference.dynamics import ForwardDynamics
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.reference.planar.constraints import MechanismError
 from mechval.model.scenario import Scenario, ScenarioError
 

@@ -14,7 +14,7 @@ import math
 import re
 from typing import Any, Mapping
 
-from mechval.model.linkages import without_closed_form
+from mechval.reference.linkages import without_closed_form
 from mechval.model.mechanism import GROUND, BodyTorque, Joint, SpringDamper
 from mechval.model.scenario import DEFAULT_TOLERANCE, Scenario
 

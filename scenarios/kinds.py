@@ -3,7 +3,7 @@
 docs/scenario-format.md): a file's few numbers — geometry, masses, the
 crank's drive, effects — expanded into the scene every scenario becomes
 (`mechval.model.scene`), with the kind's closed form beside it
-(`mechval.model.linkages.ClosedForm`), which the reference then uses.
+(`mechval.reference.linkages.ClosedForm`), which the reference then uses.
 
 Every refusal is a `ScenarioError` naming the file, the dotted key and the
 reason. Beyond each key's own checks: a loop that cannot close at some
@@ -21,8 +21,8 @@ import numpy as np
 
 from mechval.reference.analysis import check_trustworthy
 from mechval.model.drive import DriveLaw
-from mechval.model.limits import check_scene
-from mechval.model.linkages import CRANK_PIVOT, LINKAGES, ClosedForm, crank_drive
+from mechval.reference.limits import check_scene
+from mechval.reference.linkages import CRANK_PIVOT, LINKAGES, ClosedForm, crank_drive
 from mechval.model.mechanism import InitialValue, TorqueLaw
 from mechval.model.scenario import LinkMass, Scenario
 from mechval.model.scene import Scene

@@ -25,8 +25,8 @@ from pathlib import Path
 from typing import Any, Collection, Mapping
 
 from mechval.model.drive import DriveLaw
-from mechval.model.limits import check_scene
-from mechval.model.linkages import build_mechanism
+from mechval.reference.limits import check_scene
+from mechval.reference.linkages import build_mechanism
 from mechval.model.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, SpringDamper, TorqueLaw
 from mechval.reference.planar.solver import MechanismError, PlanarSolver
 from mechval.model.scenario import Scenario, ScenarioError

@@ -12,8 +12,8 @@ import math
 import reprlib
 from typing import Any, Collection, Mapping
 
-from mechval.model.limits import shown_int
-from mechval.model.linkages import LINKAGES
+from mechval.reference.limits import shown_int
+from mechval.reference.linkages import LINKAGES
 from mechval.model.scenario import DEFAULT_TOLERANCE, EngineTable, ScenarioError, TimeGrid, Tolerance
 
 #: Largest magnitude accepted for any number (SI units): far beyond any

@@ -31,7 +31,7 @@ from mechval.records.audit import failures, format_audit
 from mechval.judging.compare import HEALTH_BOUNDS, compare
 from mechval.reference.dynamics import raw_dynamics
 from mechval.harness.simulate import simulate
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.scenario import ScenarioError
 from mechval.scenarios import parse
 from mechval.records.signals import canonical_signals, signal_names

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.special import ellipj, ellipk
 
 from mechval.model.drive import DriveLaw
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.mechanism import (GROUND, Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, Mechanism,
                                SpringDamper, TorqueLaw)
 from mechval.reference.planar.solver import default_pose

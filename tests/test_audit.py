@@ -17,7 +17,7 @@ from mechval.records.audit import (ABSENT_EFFECTS, AUDIT_RTOL, AS_SET, DIFFERS, 
                            Reading, audit, expected_model, failures, format_audit)
 from mechval.records.audit import AuditResult, ModelReader
 from mechval.harness.audit_run import audit_scenario
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.reports.audit import audit_section
 from mechval.harness.simulate import simulate
 

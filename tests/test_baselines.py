@@ -24,7 +24,7 @@ import pytest
 from conftest import BUILTIN, CLOSED_FORM, ENGINES, builtin_reference, builtin_scenario, engine_or_skip
 from fake_engines import registered
 from mechval.harness import baseline as bl
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.mechanism import GROUND
 from mechval.harness.baseline_run import check_run, fed
 from mechval.harness.cli import main

@@ -25,7 +25,7 @@ from mechval.reports.cost_report import cost_section
 from mechval.scenarios import builtin_path, load
 from mechval.harness.simulate import simulate
 from mechval.model.kinematics import step_rate
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 
 ENGINES = [name for name, reason in registry.availability().items() if not reason]
 #: Columns that must not depend on where a point ran (times naturally do).

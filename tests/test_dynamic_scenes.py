@@ -25,7 +25,7 @@ from mechval.reference.dynamics import raw_dynamics
 from mechval.harness.cli import main
 from mechval.judging.health import joint_gaps
 from mechval.model.kinematics import step_rate
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.harness.simulate import simulate
 from mechval.model.scenario import ScenarioError
 from mechval.scenarios import builtin_path, parse

@@ -37,7 +37,7 @@ from mechval.adapter import Unrepresentable, mechanism_features
 from mechval.reference.dynamics import RTOL, ForwardDynamics, raw_dynamics
 from mechval.judging.energy import applied_power, kinetic_energy, potential_energy
 from mechval.judging.health import joint_gaps
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.mechanism import GROUND, Body, BodyPose, Drive, InitialValue, Joint, TorqueLaw
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.planar.solver import raw_planar

@@ -27,7 +27,7 @@ import pytest
 
 from mechval.reference import dynamics
 from mechval.reference.dynamics import RTOL, raw_dynamics
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import load, parse
 from mechval.records.signals import SIGNAL_CLASS, canonical_signals
 

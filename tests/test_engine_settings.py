@@ -15,7 +15,7 @@ import pytest
 from conftest import ENGINES, engine_or_skip
 from mechval.harness import cli
 from mechval.engines.registry import EngineUnavailable, adapter_class
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.scenario import EngineTable, ScenarioError
 from mechval.scenarios import builtin_path, parse
 from mechval.testing.scenes import slider_crank

@@ -22,7 +22,7 @@ from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance, discrepancy_table
 from mechval.model.drive import DriveLaw
 from mechval.reference.dynamics import raw_dynamics
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.adapter import Unrepresentable
 from mechval.model.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, InitialValue, Joint, Mechanism
 from mechval.reference.adapter import raw_reference

@@ -2,7 +2,7 @@
 of mass d metres out along it).
 
 Far beyond the mechanism's size the scene is refused up front
-(`mechval.model.limits.MAX_COM_DISTANCE`): Exudyn had called the four-bar
+(`mechval.reference.limits.MAX_COM_DISTANCE`): Exudyn had called the four-bar
 "redundant constraints" at d = 1e9 m, and the reference's assembly crashed
 the run at 1e12 m (exit 1 with a traceback). Within the bound Exudyn's
 Newton stopped ("SolveDynamic terminated") from about 30 m: its absolute

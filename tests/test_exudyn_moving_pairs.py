@@ -17,7 +17,7 @@ from mechval.records.audit import failures
 from mechval.judging.compare import compare, passed
 from mechval.testing import discrepancy_table
 from mechval.harness.simulate import simulate
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.mechanism import GROUND, Body, Joint, Mechanism
 from mechval.scenarios import parse
 

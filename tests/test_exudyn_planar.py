@@ -17,7 +17,7 @@ from mechval.adapter import mechanism_features
 from mechval.records.audit import failures
 from mechval.harness.audit_run import audit_scenario
 from mechval.harness.simulate import simulate
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.scenario import ScenarioError
 from planar_contract import PlanarContract
 from planar_scenes import scene

@@ -164,7 +164,7 @@ def engine_document(name: str, engine: str) -> dict:
     table: engine runs take a second or less) and an [engines.ENGINE] table
     holding every setting the adapter derives for it, so that mutations
     reach the settings too."""
-    from mechval.model.linkages import build_mechanism
+    from mechval.reference.linkages import build_mechanism
     from mechval.scenarios import parse
     doc = document(name)
     if isinstance(doc.get("time"), dict):
@@ -313,7 +313,7 @@ def test_an_engine_blow_up_is_one_line_without_numpy_warnings(tmp_path, engine):
 
 def test_health_of_an_all_nan_run_warns_nothing():
     from mechval.judging.health import health
-    from mechval.model.linkages import build_mechanism
+    from mechval.reference.linkages import build_mechanism
     from mechval.reference.adapter import raw_reference
     from mechval.scenarios import load
     for name in ("fourbar-seed", "slider-crank"):

@@ -107,7 +107,7 @@ def test_the_distant_centre_of_mass_bound_is_where_the_reference_breaks(monkeypa
     four-bar, its closure tolerance scaled by a size the centre of mass
     sets (from an approximate pose, as a file gives it: the closed form's
     angles at t = 0 rounded to 0.01 rad)."""
-    from mechval.model import limits
+    from mechval.reference import limits
     doc = twin_document("fourbar-seed")
     doc["time"].update(end=1.0, samples=101)
     doc["assembly"] = {body: round(theta, 2) for body, theta in doc["assembly"].items()}

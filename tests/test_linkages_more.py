@@ -11,7 +11,7 @@ import pytest
 from conftest import builtin_scenario
 from mechval.reference.analysis import analyse
 from mechval.reference.closed_forms.loop import measured_stroke_ratio
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.kinematics import joint_gap
 from mechval.model.mechanism import GROUND
 from mechval.reference.adapter import raw_reference

@@ -14,7 +14,7 @@ from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_ski
 from mechval.judging.compare import compare, passed
 from mechval.testing import assert_within_tolerance, discrepancy_table
 from mechval.model.drive import DriveLaw
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.mechanism import GROUND, Body, Drive, Joint, Mechanism
 from mechval.reference.newton_euler import reactions
 from mechval.scenarios import parse

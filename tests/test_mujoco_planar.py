@@ -11,7 +11,7 @@ import pytest
 from mechval.records.audit import failures, format_audit
 from mechval.judging.compare import compare
 from mechval.harness.simulate import simulate
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from planar_contract import PlanarContract
 from planar_scenes import SCENES, scene
 

@@ -18,7 +18,7 @@ from conftest import CANNOT_RUN, ENGINES, builtin_scenario, engine_or_skip
 from mechval.judging.compare import compare
 from mechval.harness.simulate import simulate
 from mechval.judging.health import joint_gaps
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.reference.planar.solver import raw_planar
 from mechval.scenarios import builtin_names
 from scales import size

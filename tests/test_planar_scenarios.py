@@ -20,7 +20,7 @@ from conftest import CLOSED_FORM, builtin_scenario
 from mechval.adapter import mechanism_features
 from mechval.reference.analysis import analyse, format_analysis
 from mechval.harness.simulate import simulate
-from mechval.model.linkages import build_mechanism, without_closed_form
+from mechval.reference.linkages import build_mechanism, without_closed_form
 from mechval.model.kinematics import point_motion
 from mechval.reference.planar.solver import raw_planar
 from mechval.reference.adapter import raw_reference

@@ -27,7 +27,7 @@ from conftest import CLOSED_FORM, builtin_scenario
 from mechval.model.drive import DriveLaw
 from mechval.reference.closed_forms.fourbar import position as fourbar_position
 from mechval.judging.health import joint_gaps, slide_rate
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.model.kinematics import point_motion
 from mechval.model.mechanism import GROUND, BodyPose, BodyTorque, Drive, Joint, SpringDamper
 import mechval.reference.planar.positions as positions

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from mechval.judging.health import power_balance
 from mechval.model.kinematics import joint_gaps
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.reference.adapter import raw_reference
 from mechval.model.scenario import ScenarioError
 from mechval.scenarios import parse

@@ -23,7 +23,7 @@ from mechval.model.mechanism import InitialValue, TorqueLaw
 from mechval.reference.planar.solver import default_pose
 from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import parse
 from mechval.records.signals import canonical_signals
 from mechval.testing.scenes import fourbar, slider_crank

@@ -16,7 +16,7 @@ from __future__ import annotations
 import pytest
 
 from mechval.harness.simulate import simulate
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from planar_contract import PlanarContract
 from planar_scenes import scene
 

@@ -10,7 +10,7 @@ import pytest
 from conftest import CLOSED_FORM, builtin_scenario
 from mechval.judging.health import power_balance
 from mechval.model.kinematics import joint_gaps, point_motion
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.reference.adapter import raw_reference
 from mechval.harness.simulate import simulate
 from mechval.reference.newton_euler import assemble, reaction_values

@@ -16,7 +16,7 @@ import numpy as np
 from mechval.model.scene import Scene
 
 if TYPE_CHECKING:                       # the closed forms import this module
-    from mechval.model.linkages import ClosedForm
+    from mechval.reference.linkages import ClosedForm
 
 
 #: Longest key and reason shown in an error message: a key, or a value a
@@ -110,7 +110,7 @@ class EngineTable:
 class Scenario:
     """A scenario file's facts (name, time grid, tolerances, engine tables)
     and its scene (`mechval.model.scene`); a closed-form kind's file also gives
-    the scene's closed form (`mechval.model.linkages.ClosedForm`)."""
+    the scene's closed form (`mechval.reference.linkages.ClosedForm`)."""
 
     name: str
     description: str

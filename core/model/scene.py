@@ -6,8 +6,8 @@ approximate assembly pose, all in SI units.
 A planar file states its scene directly (`mechval.scenarios.planar`); each
 of the four closed-form kinds expands its few numbers into one
 (`mechval.scenarios.kinds`) and supplies its closed form beside it
-(`mechval.model.linkages.ClosedForm`). The `Mechanism` adapters see is built from
-the scene alone (`mechval.model.linkages.build_mechanism`).
+(`mechval.reference.linkages.ClosedForm`). The `Mechanism` adapters see is built from
+the scene alone (`mechval.reference.linkages.build_mechanism`).
 
 Canonical signals of a scene without a closed form (docs/conventions.md):
 per body B its angle and its centre of mass's motion, B.theta, B.omega,

@@ -24,7 +24,7 @@ from mechval.model.mechanism import Mechanism
 # Re-exported: the harness and reports write signals, baselines and report
 # folders through them (mechval.records.outputs).
 from mechval.records.outputs import current_umask, write_atomically, write_folder_atomically  # noqa: F401
-from mechval.judging.resultants import body_resultants, resultant_columns, resultant_inputs
+from mechval.reference.resultants import body_resultants, resultant_columns, resultant_inputs
 
 COMMON_SIGNALS = (
     "t", "theta2", "omega2", "alpha2", "theta3", "omega3", "alpha3",
@@ -215,7 +215,7 @@ def with_com_columns(mechanism: Mechanism, raw: pd.DataFrame) -> pd.DataFrame:
 def with_resultant_columns(mechanism: Mechanism, raw: pd.DataFrame,
                            missing: dict[str, str]) -> tuple[pd.DataFrame, dict[str, str]]:
     """Add each body's resultant constraint load B.R.Fx, B.R.Fy, B.R.M
-    (`mechval.judging.resultants`) when the signal map asks for them (redundant
+    (`mechval.reference.resultants`) when the signal map asks for them (redundant
     constraints) and the raw frame has not got them already (the
     reference adds them before it blanks the reactions that are not
     unique). A reason for missing inputs carries over."""

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mechval.model.linkages import ClosedForm, build_mechanism
+from mechval.reference.linkages import ClosedForm, build_mechanism
 from mechval.reference.planar.analysis import analyse_planar, format_planar_analysis
 from mechval.reference.adapter import raw_reference
 from mechval.model.scenario import Scenario, ScenarioError

@@ -34,7 +34,7 @@ import numpy as np
 from mechval.model.mechanism import GROUND, Joint, Mechanism
 from mechval.reference.planar.constraints import Constraints
 from mechval.reference.planar.forces import AppliedForces
-from mechval.judging.resultants import body_resultants
+from mechval.reference.resultants import body_resultants
 
 #: The reason given for slide couples no balance can single out.
 UNDERIVABLE = ("Exudyn 1.13.6 reports no couple of ObjectJointPrismatic2D (ForceLocal[2] stays 0), and the slides' "

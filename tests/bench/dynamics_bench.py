@@ -88,7 +88,7 @@ def fall(args) -> None:
 def scenes(args) -> None:
     """Each built-in torque-driven or free scene file, as `mechval` runs it."""
     import tomllib
-    from mechval.model.linkages import build_mechanism
+    from mechval.reference.linkages import build_mechanism
     from mechval.reference.adapter import ReferenceAdapter
     from mechval.scenarios import builtin_names, builtin_path, load, parse
     print(f"Built-in torque-driven and free scenes through the reference adapter (best of {args.repeats})")
@@ -112,7 +112,7 @@ def scenes(args) -> None:
 
 
 def spun(args) -> None:
-    from mechval.model.linkages import build_mechanism
+    from mechval.reference.linkages import build_mechanism
     from mechval.reference.adapter import ReferenceAdapter
     from test_dynamics_accuracy import spun_fourbar
     scenario = spun_fourbar(2.2)

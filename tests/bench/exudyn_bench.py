@@ -16,7 +16,7 @@ import time
 from mechval.engines.exudyn.adapter import ExudynAdapter
 from mechval.engines.exudyn.run import prepare
 from mechval.engines.exudyn.model import SOLVERS
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import load
 from mechval.harness.simulate import simulate
 from timing import best_times, scenario_arguments

@@ -23,7 +23,7 @@ from mujoco import rollout
 
 from mechval.engines.mujoco.adapter import MujocoAdapter
 from mechval.engines.mujoco.run import Model
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import load
 from timing import interleaved_times, scenario_arguments, timed
 

@@ -19,7 +19,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 import andrews as A  # noqa: E402
-from mechval.model.linkages import build_mechanism  # noqa: E402
+from mechval.reference.linkages import build_mechanism  # noqa: E402
 from mechval.reference.planar.solver import raw_planar  # noqa: E402
 from mechval.reference.adapter import raw_reference  # noqa: E402
 from mechval.scenarios import builtin_names, load  # noqa: E402

@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 import mechval.reference.planar.solver as planar_solver  # noqa: E402
 from andrews import andrews_mechanism  # noqa: E402
-from mechval.model.linkages import build_mechanism  # noqa: E402
+from mechval.reference.linkages import build_mechanism  # noqa: E402
 from mechval.reference.planar.solver import raw_planar  # noqa: E402
 from mechval.reference.adapter import raw_reference  # noqa: E402
 from mechval.scenarios import load  # noqa: E402

@@ -18,7 +18,7 @@ import numpy as np
 
 from mechval.engines.pybullet.adapter import PybulletAdapter
 from mechval.engines.pybullet.model import NO_CAP, build, p
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import load
 from mechval.harness.simulate import simulate
 from timing import best_times, scenario_arguments

@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mechval.judging.compare import compare  # noqa: E402
 from mechval.engines.pybullet import run as adapter_module  # noqa: E402
 from mechval.engines.registry import adapter  # noqa: E402
-from mechval.model.linkages import build_mechanism  # noqa: E402
+from mechval.reference.linkages import build_mechanism  # noqa: E402
 from mechval.harness.simulate import simulate
 from test_linkages_more import SCENES  # noqa: E402
 

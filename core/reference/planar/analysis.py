@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mechval.model.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.planar.solver import raw_planar
 from mechval.model.scenario import Scenario, ScenarioError

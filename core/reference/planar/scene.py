@@ -2,7 +2,7 @@
 `motion` solved by `mechval.reference.planar.solver`, and whether its joints are
 redundant (each body's resultant is then a signal, docs/conventions.md).
 The scene model itself is `mechval.model.scene`; the one path from a scene to
-its `Mechanism` is `mechval.model.linkages.build_mechanism`.
+its `Mechanism` is `mechval.reference.linkages.build_mechanism`.
 """
 
 from __future__ import annotations

@@ -49,7 +49,7 @@ from mechval.reference.planar.forces import AppliedForces, mass_diagonal
 from mechval.reference.planar.linear import settled, solve_one
 from mechval.reference.planar.positions import Nodes, Scaling, Structure, assemble, march, mechanism_size, redundant_joint_rows
 from mechval.reference.planar.tree import Factor, Tree
-from mechval.judging.resultants import body_resultants
+from mechval.reference.resultants import body_resultants
 
 #: Instants per batch: bounds memory; fewer, longer array operations
 #: (tests/bench/planar_bench.py measures the batch sizes).
@@ -272,7 +272,7 @@ class PlanarSolver:
     def _resultants(self, undetermined: np.ndarray, table: np.ndarray, columns: list[str]) -> dict[str, np.ndarray]:
         """Each body's resultant constraint load, from this particular λ
         before `_missing` blanks the reactions that are not unique: the
-        resultant is unique all the same (`mechval.judging.resultants`)."""
+        resultant is unique all the same (`mechval.reference.resultants`)."""
         if not undetermined.any():
             return {}
         return body_resultants(self.mech, {name: table[k] for k, name in enumerate(columns)})

@@ -8,7 +8,7 @@ A scene with a closed form takes its motion, canonical signal names and
 assembly-branch indicator from it (the reference is then the closed form);
 a scene without one is solved by the general reference
 (`mechval.reference.planar.solver`); a torque-driven or free scene's motion is
-integrated (`mechval.model.dynamic_scene`). Nothing else differs: the bodies,
+integrated (`mechval.reference.dynamic_scene`). Nothing else differs: the bodies,
 joints, drives and forces are the scene's.
 """
 
@@ -24,11 +24,11 @@ import pandas as pd
 
 from mechval.reference.closed_forms import fourbar, inverted_slider, slider_crank, slotted_lever
 from mechval.model.drive import DriveLaw
-from mechval.model.dynamic_scene import with_dynamics
+from mechval.reference.dynamic_scene import with_dynamics
 from mechval.model.mechanism import Drive, Mechanism
 from mechval.reference.planar.scene import SolvedMotion, has_redundant_constraints
 from mechval.reference.planar.solver import default_pose
-from mechval.judging.resultants import RESULTANT_SIGNALS
+from mechval.reference.resultants import RESULTANT_SIGNALS
 from mechval.model.scenario import Scenario
 from mechval.model.scene import signal_map as scene_signal_map
 

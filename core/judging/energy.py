@@ -2,7 +2,7 @@
 from raw motion columns alone (any engine's, or the reference's).
 
 - kinetic: Σ ½·m·|v_G|² + ½·izz·ω² (centre-of-mass velocity from the body
-  frame's motion, `mechval.model.mechanism.point_motion`);
+  frame's motion, `mechval.model.kinematics.point_motion`);
 - potential: gravity −Σ m·g·r_G, and each spring ½·k·(ℓ − ℓ0)²;
 - its rate dE/dt from the accelerations (`energy_rate`);
 - applied power (the rest): torque laws and prescribed drives (their effort

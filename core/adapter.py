@@ -3,7 +3,7 @@ the analytic reference, implements.
 
 An adapter turns a `Mechanism` into a model, drives it (or lets it run) as
 the mechanism says, and returns raw motion and reaction columns (see
-`mechval.mechanism`) at the requested instants, already in the Fij
+`mechval.model.mechanism`) at the requested instants, already in the Fij
 convention, with a typed record of what the run did (`RunInfo`). Settings
 are declared (`settings_spec`) and checked here, before any run. Mapping to
 the canonical signals, health and comparison happen in the harness.
@@ -21,10 +21,10 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from .mechanism import Mechanism
-from .planar_solver import redundant_constraints
-from .scenario import Scenario, ScenarioError
-from .settings import TIMESTEP, Setting
+from mechval.model.mechanism import Mechanism
+from mechval.reference.planar.solver import redundant_constraints
+from mechval.model.scenario import Scenario, ScenarioError
+from mechval.settings import TIMESTEP, Setting
 
 #: The finest step a setting may ask for, as steps per sample interval:
 #: beyond it a run cannot finish (nor its states fit in memory).
@@ -62,9 +62,9 @@ RUN_INFO_FIELDS = ("build_time_s", "wall_time_s", "steps", "warnings")
 @dataclass(frozen=True)
 class PeakRates:
     """The reference motion of a run on the step rule's dense grid `t`
-    (`mechval.kinematics.STEP_RULE_GRID` instants; a torque-driven or free
+    (`mechval.model.kinematics.STEP_RULE_GRID` instants; a torque-driven or free
     mechanism's integrated by the forward-dynamics reference), and its Ω
-    (`mechval.kinematics.peak_rate`): what default steps and force scales
+    (`mechval.model.kinematics.peak_rate`): what default steps and force scales
     are made of. The harness computes it once per scene
     (`mechval.harness.plan`) and hands it to every adapter that declares
     `uses_peak_rates` (`mechval.engines.base.peak_rates` computes it)."""
@@ -274,7 +274,7 @@ class EngineAdapter(ABC):
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         """What the engine model `run` builds holds, read back and set
-        against the Mechanism (`mechval.audit`); adapters override this."""
+        against the Mechanism (`mechval.records.audit`); adapters override this."""
         raise NotImplementedError(f"{self.name}: no model audit")
 
 

@@ -15,13 +15,13 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from mechval import engine_inputs
+from mechval.records import engine_inputs
 from mechval.adapter import (MAX_STEPS_PER_SAMPLE, EngineAdapter, PeakRates, RawRun,  # noqa: F401 (re-exported)
                              RunInfo, Unrepresentable)
-from mechval.dynamics import RTOL, raw_dynamics
-from mechval.kinematics import dense_grid, peak_rate
-from mechval.mechanism import Mechanism
-from mechval.planar_constraints import MechanismError
+from mechval.reference.dynamics import RTOL, raw_dynamics
+from mechval.model.kinematics import dense_grid, peak_rate
+from mechval.model.mechanism import Mechanism
+from mechval.reference.planar.constraints import MechanismError
 
 #: The forward-dynamics reference's tolerance where only a run's peak rates
 #: and forces are needed (`planned_motion`: the step rule, force scales, the
@@ -70,7 +70,7 @@ def reference_motion(mechanism: Mechanism, t: np.ndarray, rtol: float = RTOL) ->
         except MechanismError as exc:
             raise Unrepresentable(exc.key, exc.reason) from None
     # Through the run's recorded inputs, where the harness feeds them
-    # (`mechval.engine_inputs`).
+    # (`mechval.records.engine_inputs`).
     return engine_inputs.read(mechanism, "dynamics", t, rtol, integrate)
 
 
@@ -89,7 +89,7 @@ def planned_motion(mechanism: Mechanism) -> Mechanism:
 
 def peak_rates(mechanism: Mechanism, times: np.ndarray) -> PeakRates:
     """The planned motion on the step rule's dense grid over the run, and
-    its Ω (`mechval.kinematics.step_rate`): one solve, which the harness
+    its Ω (`mechval.model.kinematics.step_rate`): one solve, which the harness
     does once per scene and hands to every adapter (`uses_peak_rates`)."""
     t = dense_grid(times)
     motion = planned_motion(mechanism).motion(t)

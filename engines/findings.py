@@ -1,4 +1,4 @@
-"""The engine findings' probes, by engine (`mechval.findings`).
+"""The engine findings' probes, by engine (`mechval.records.findings`).
 
 Registered by module path like the adapters, so that nothing imports an
 engine library until its probes run; an engine that is not installed is
@@ -10,12 +10,12 @@ from __future__ import annotations
 import importlib
 from typing import Iterable
 
-from mechval.findings import Measurement
+from mechval.records.findings import Measurement
 
-from .registry import EngineUnavailable, adapter
+from mechval.engines.registry import EngineUnavailable, adapter
 
 #: Engine name → module with FINDINGS (records) and PROBES (key → probe).
-PROBE_MODULES = {"pybullet": "mechval.engines.pybullet_findings"}
+PROBE_MODULES = {"pybullet": "mechval.engines.pybullet.findings"}
 
 
 def measure_findings(engines: Iterable[str]) -> list[Measurement]:

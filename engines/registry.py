@@ -29,11 +29,11 @@ import warnings
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .base import EngineAdapter
+    from mechval.engines.base import EngineAdapter
 
 #: The analytic reference is an adapter too; it is not an engine to compare.
 REFERENCE = "reference"
-REFERENCE_ADAPTER = "mechval.reference:ReferenceAdapter"
+REFERENCE_ADAPTER = "mechval.reference.adapter:ReferenceAdapter"
 ENTRY_POINT_GROUP = "mechval.engines"
 #: The distribution whose entry points are the built-in engines.
 OWN_DISTRIBUTION = "mechval"

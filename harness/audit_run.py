@@ -1,4 +1,4 @@
-"""Run the compiled-model audit (`mechval.audit`) of engines on scenarios:
+"""Run the compiled-model audit (`mechval.records.audit`) of engines on scenarios:
 the harness side, which knows the engine registry (as `baseline_run` does
 for baselines). An audit builds each engine's model and reads it back; it
 simulates nothing."""
@@ -8,9 +8,9 @@ from __future__ import annotations
 import time
 from typing import Any, Iterable, Mapping
 
-from mechval.audit import AuditResult, format_audit
+from mechval.records.audit import AuditResult, format_audit
 from mechval.engines.registry import adapter
-from mechval.scenario import Scenario
+from mechval.model.scenario import Scenario
 
 from .plan import Plan, planned, prepare
 from .preflight import chosen_engines, load_scenario

@@ -17,7 +17,7 @@ pytest both print and judge from it.
 The verdict must depend on the engine alone, not on the machine: the JSON
 record keeps everything the engine was fed — every resolved setting and
 every value the run read from the reference (`inputs`,
-`mechval.engine_inputs`) — and a check feeds exactly those (`feed`), since
+`mechval.records.engine_inputs`) — and a check feeds exactly those (`feed`), since
 the reference's last bits vary with the machine's BLAS kernels and an
 engine can amplify them a hundred-million-fold. It also keeps each signal's
 `sensitivity`, how far the signal moved when those inputs moved by one unit
@@ -47,10 +47,10 @@ import numpy as np
 import pandas as pd
 from packaging.version import InvalidVersion, Version
 
-from mechval.compare import compare
-from mechval.engine_inputs import Feed, RecordedInputs
-from mechval.scenario import Scenario, Tolerance
-from mechval.signals import SIGNAL_CLASS, Signals
+from mechval.judging.compare import compare
+from mechval.records.engine_inputs import Feed, RecordedInputs
+from mechval.model.scenario import Scenario, Tolerance
+from mechval.records.signals import SIGNAL_CLASS, Signals
 
 #: Default regression threshold: max |new − stored| ≤ RTOL · peak, with peak
 #: the stored signal's max |value| over the run. Measured on the committed
@@ -491,7 +491,7 @@ def context_changes(meta: Mapping[str, Any], new: Mapping[str, Any]) -> list[str
 
 def accuracy_change(reference: Signals, stored: Signals, new: Signals, tolerance: Tolerance) -> pd.DataFrame:
     """Per signal class, the max relative error (max |error| / peak, as in
-    `mechval.compare`) against the reference of the stored and the new
+    `mechval.judging.compare`) against the reference of the stored and the new
     signals, and whether accuracy improved, worsened or is unchanged ("n/a"
     where one of them cannot be compared, e.g. the samples changed)."""
     table = pd.DataFrame({"old": _class_errors(reference, stored, tolerance),

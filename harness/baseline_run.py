@@ -13,13 +13,13 @@ from typing import Any, Mapping
 
 import pandas as pd
 
-from mechval.engine_inputs import Feed, InputsNotRecorded
+from mechval.records.engine_inputs import Feed, InputsNotRecorded
 from mechval.engines.registry import adapter_class
-from mechval.outcome import Outcome, Task
+from mechval.records.outcome import Outcome, Task
 from mechval.reports.build import provenance
-from mechval.scenario import ScenarioError
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import builtin_path
-from mechval.signals import SIGNAL_CLASS, Signals
+from mechval.records.signals import SIGNAL_CLASS, Signals
 
 from . import baseline as bl
 from .defaults import Limits

@@ -9,7 +9,7 @@ module that does its work, imported only when that command runs (so that
     cost      harness/cost.py         cost_command
     baseline  harness/baseline_run.py baseline_command
     audit     harness/audit_run.py    audit_command
-    analyse   mechval.analysis; export: mechval.scenarios.export
+    analyse   mechval.reference.analysis; export: mechval.scenarios.export
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ def cmd_audit(args) -> int:
 
 
 def cmd_analyse(args) -> int:
-    from mechval.analysis import analyse, format_analysis
+    from mechval.reference.analysis import analyse, format_analysis
     from .preflight import load_scenario
     print(format_analysis(analyse(load_scenario(args.scenario))))
     return 0
@@ -199,7 +199,7 @@ def _error(exc: Exception) -> tuple[int, str] | None:
     """The exit status and message of an error the command reports on one
     line (None: a bug, shown with its traceback). Their modules are
     imported here, not before: a command imports what it uses."""
-    from mechval.scenario import ScenarioError
+    from mechval.model.scenario import ScenarioError
     from .baseline import LinkInside, UnsafeName
     from .baseline_run import BaselinesExist
     from .executors import SchedulerUnreachable

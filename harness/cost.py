@@ -4,7 +4,7 @@ Every engine runs its ladder of time steps (the adapter's `cost_ladder`,
 rotations per step at the run's peak rate Ω, each snapped to the sample
 interval divided by a 1-2-5 count, so the step divides the interval as
 every adapter requires), crossed with its `cost_variants`, plus its default
-step. One point (one setting) is one task (`mechval.outcome.Task`, as a
+step. One point (one setting) is one task (`mechval.records.outcome.Task`, as a
 comparison run's): its timing repeats stay on one
 worker, and every task goes through the same `Executor` (a local process
 pool or a Dask cluster), so the errors do not depend on where it ran.
@@ -16,7 +16,7 @@ median of the repeats, per simulated second. The adapters' own
 as `engine_s_per_sim_s`. The reference is timed the same way (the
 same `simulate` call, its adapter's) and every time is also given as a ratio to it.
 
-Errors are those of `mechval.compare.compare`, the largest per signal
+Errors are those of `mechval.judging.compare.compare`, the largest per signal
 class: relative to the signal's peak for relative classes, absolute (rad,
 m) for angle and position; "force+torque" is the larger of the two
 relative classes. Failures (an exception, a crashed or hung worker,
@@ -37,14 +37,14 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from mechval.compare import compare
-from mechval.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE, cheapest, convergence, format_tables
+from mechval.judging.compare import compare
+from mechval.judging.cost_tables import CLASS_ORDER, COLUMNS, HEADLINE, REFERENCE, cheapest, convergence, format_tables
 from mechval.engines.base import peak_rates
 from mechval.engines.registry import adapter
-from mechval.outcome import Task
-from mechval.scenario import Scenario, Tolerance, require_unique_names
+from mechval.records.outcome import Task
+from mechval.model.scenario import Scenario, Tolerance, require_unique_names
 from mechval.reports.cost_report import write_cost_report
-from mechval.signals import SIGNAL_CLASS, Signals
+from mechval.records.signals import SIGNAL_CLASS, Signals
 
 from .defaults import DASK_CONNECT_TIMEOUT, Limits
 from .executors import Done, Executor, dask_address_problem, executor_for
@@ -159,7 +159,7 @@ def sweep(scenarios: Sequence[Scenario | Plan], engines: Iterable[str], executor
 def cost_sweep(scenarios: Sequence[Scenario | Plan], engines: Iterable[str], executor: Executor, quick: bool,
                repeats: int, quiet: bool) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
     """The cost table, observed orders and cheapest settings
-    (`mechval.cost_tables`), with a progress bar on stderr unless `quiet`."""
+    (`mechval.judging.cost_tables`), with a progress bar on stderr unless `quiet`."""
     with tqdm(desc="cost points", unit="point", file=sys.stderr, disable=quiet) as bar:
         def done(point, outcome):
             bar.set_postfix_str(f"{point.engine} {point.setting} dt {point.step:.3g}"

@@ -40,7 +40,7 @@ def builtin_files() -> dict[str, Path]:
 
 
 def one_line(text: str, limit: int | None = None) -> str:
-    """`mechval.scenario.one_line` (a test checks they agree), which the
+    """`mechval.model.scenario.one_line` (a test checks they agree), which the
     listing cannot import: `text` with line breaks and other non-printable
     characters shown as escapes, cut to `limit` characters with "…"."""
     shown = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in str(text))

@@ -10,10 +10,10 @@ reference adapter's own run at the samples, once per scene,
 start through the mechanism's `motion` (or `mechval.engines.base.
 reference_motion`) inside its own run, at instants only it knows (its
 pre-roll), so that the run's inputs are recorded and a baseline check can
-feed them back (`mechval.engine_inputs`).
+feed them back (`mechval.records.engine_inputs`).
 
 A plan lives in one process: a worker gets the resolved settings with its
-task (`mechval.outcome.Task.settings`), builds the mechanism (no solve) and
+task (`mechval.records.outcome.Task.settings`), builds the mechanism (no solve) and
 derives nothing.
 """
 
@@ -26,9 +26,9 @@ from typing import Any, Iterable, Mapping
 from mechval.adapter import EngineAdapter, PeakRates, ResolvedSettings, Unrepresentable, mechanism_features
 from mechval.engines.base import peak_rates
 from mechval.engines.registry import adapter
-from mechval.linkages import build_mechanism
-from mechval.mechanism import Mechanism
-from mechval.scenario import Scenario, ScenarioError
+from mechval.reference.linkages import build_mechanism
+from mechval.model.mechanism import Mechanism
+from mechval.model.scenario import Scenario, ScenarioError
 
 
 @dataclass(frozen=True)

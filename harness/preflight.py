@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from mechval.engines.registry import REFERENCE, adapter, availability, engine_names
-from mechval.outputs import not_a_regular_file
-from mechval.scenario import Scenario
+from mechval.records.outputs import not_a_regular_file
+from mechval.model.scenario import Scenario
 from mechval.scenarios import builtin_names, load
 
 from .defaults import Limits

@@ -16,16 +16,16 @@ from typing import Callable, ContextManager
 import pandas as pd
 from tqdm import tqdm
 
-from mechval.compare import passed
+from mechval.judging.compare import passed
 from mechval.engines.findings import measure_findings
-from mechval.outcome import Outcome
+from mechval.records.outcome import Outcome
 from mechval.reports.audit import audit_section
 from mechval.reports.build import provenance, summary_markdown, write_report
 from mechval.reports.cost_report import cost_section, write_table
 from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
-from mechval.scenario import Scenario, one_line
-from mechval.signals import Signals
+from mechval.model.scenario import Scenario, one_line
+from mechval.records.signals import Signals
 
 from .audit_run import audit_all
 from .cost import cost_sweep, points_for

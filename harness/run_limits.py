@@ -12,8 +12,8 @@ from typing import Any, Mapping
 
 from mechval.adapter import EngineAdapter, as_float
 from mechval.engines.registry import adapter
-from mechval.scenario import Scenario, ScenarioError
-from mechval.limits import signal_count
+from mechval.model.scenario import Scenario, ScenarioError
+from mechval.reference.limits import signal_count
 
 from .defaults import DEFAULT_MAX_MEMORY, DEFAULT_MAX_STEPS, Limits  # noqa: F401 (also imported from here)
 from .plan import prepare

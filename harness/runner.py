@@ -13,11 +13,11 @@ from typing import Callable, Iterable, Mapping
 
 import pandas as pd
 
-from mechval.compare import COLUMNS, compare
+from mechval.judging.compare import COLUMNS, compare
 from mechval.engines.registry import REFERENCE, adapter
-from mechval.outcome import Outcome, Task
-from mechval.scenario import Scenario, require_unique_names
-from mechval.signals import Signals
+from mechval.records.outcome import Outcome, Task
+from mechval.model.scenario import Scenario, require_unique_names
+from mechval.records.signals import Signals
 
 from .executors import Done, LocalExecutor
 from .plan import Plan, planned, scenario_of

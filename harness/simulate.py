@@ -11,11 +11,11 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from mechval.adapter import EngineAdapter, Unrepresentable
-from mechval.engine_inputs import EngineInputs, Feed, fed_mechanism
+from mechval.records.engine_inputs import EngineInputs, Feed, fed_mechanism
 from mechval.engines.registry import REFERENCE, EngineUnavailable, UnknownEngine, adapter
-from mechval.health import health
-from mechval.scenario import Scenario, ScenarioError, one_line
-from mechval.signals import Signals, canonical_signals
+from mechval.judging.health import health
+from mechval.model.scenario import Scenario, ScenarioError, one_line
+from mechval.records.signals import Signals, canonical_signals
 
 from .defaults import Limits
 from .plan import Plan, prepare
@@ -33,7 +33,7 @@ def simulate(scenario: Scenario | Plan, engine: EngineAdapter | str,
     The settings are `settings` when given (resolved once by the caller's
     plan, with `overrides` already applied), else resolved here.
     An engine run records what it read from the reference (`Signals.inputs`,
-    `mechval.engine_inputs`); given a `feed` (a baseline's record), it runs
+    `mechval.records.engine_inputs`); given a `feed` (a baseline's record), it runs
     with exactly those settings and reads instead of deriving them here."""
     engine_adapter = adapter(engine) if isinstance(engine, str) else engine
     plan = scenario if isinstance(scenario, Plan) else prepare(scenario)

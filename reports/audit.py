@@ -1,5 +1,5 @@
 """The report's model-audit section: per scenario × engine, what the engine's
-compiled model holds against the Mechanism (`mechval.audit`), as tables.
+compiled model holds against the Mechanism (`mechval.records.audit`), as tables.
 
 An overview matrix, then one table per scenario × engine, collapsed when
 every row agrees and open when any differs (or the audit failed)."""
@@ -12,8 +12,8 @@ import numpy as np
 from jinja2 import Environment
 from markupsafe import Markup
 
-from mechval.audit import AUDIT_RTOL, FAILING
-from mechval.audit import AuditResult
+from mechval.records.audit import AUDIT_RTOL, FAILING
+from mechval.records.audit import AuditResult
 
 from .build import Section, anchor
 

@@ -18,11 +18,11 @@ import pandas as pd
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 import mechval
-from mechval.compare import GROWTH_COLUMNS, HEALTH_BOUNDS
-from mechval.linkages import build_mechanism
-from mechval.outcome import Outcome
-from mechval.scenario import Scenario, one_line
-from mechval.signals import Signals, write_folder_atomically
+from mechval.judging.compare import GROWTH_COLUMNS, HEALTH_BOUNDS
+from mechval.reference.linkages import build_mechanism
+from mechval.records.outcome import Outcome
+from mechval.model.scenario import Scenario, one_line
+from mechval.records.signals import Signals, write_folder_atomically
 
 from . import plots, runs
 from .csv_files import write_csv
@@ -33,7 +33,7 @@ TEMPLATES = Path(__file__).resolve().parent / "templates"
 RECORD_COLUMNS = ["signal", "max_error", "t_max", "rms_error", "relative_error", "bound", "ratio", "verdict",
                   "missing", "reason", *GROWTH_COLUMNS]
 TEXT_COLUMNS = {"signal", "verdict", "reason"}
-#: Record verdicts the page filters by (mechval.compare).
+#: Record verdicts the page filters by (mechval.judging.compare).
 VERDICTS = ("fail", "pass", "missing")
 
 
@@ -198,7 +198,7 @@ def _verdict(records: pd.DataFrame) -> str:
 
 def _bound_class(signal: str, cls) -> str | None:
     """The tolerance class a record's bound comes from (health figures
-    borrow theirs, mechval.compare.HEALTH_BOUNDS)."""
+    borrow theirs, mechval.judging.compare.HEALTH_BOUNDS)."""
     return HEALTH_BOUNDS.get(signal.removeprefix("health.")) if cls == "health" else cls
 
 

@@ -17,8 +17,8 @@ import pandas as pd
 from jinja2 import Environment
 from markupsafe import Markup
 
-from mechval.cost_tables import CLASS_ORDER, HEADLINE, MIN_ORDER, ORDER_SPREAD, REFERENCE, pivot_cells
-from mechval.signals import write_folder_atomically
+from mechval.judging.cost_tables import CLASS_ORDER, HEADLINE, MIN_ORDER, ORDER_SPREAD, REFERENCE, pivot_cells
+from mechval.records.signals import write_folder_atomically
 
 from .build import Section, anchor, provenance
 from .csv_files import write_csv

@@ -8,7 +8,7 @@ from typing import Sequence
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 from markupsafe import Markup
 
-from mechval.findings import Measurement
+from mechval.records.findings import Measurement
 
 from .build import TEMPLATES, Section
 

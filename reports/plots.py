@@ -27,9 +27,9 @@ from typing import Mapping
 import numpy as np
 from markupsafe import Markup
 
-from mechval.kinematics import point_position, rotate
-from mechval.mechanism import GROUND, Mechanism, SpringDamper
-from mechval.signals import SIGNAL_CLASS, Signals
+from mechval.model.kinematics import point_position, rotate
+from mechval.model.mechanism import GROUND, Mechanism, SpringDamper
+from mechval.records.signals import SIGNAL_CLASS, Signals
 
 UNITS = {"angle": "rad", "position": "m", "velocity": "m/s", "acceleration": "m/s²", "force": "N", "torque": "N·m"}
 #: Units of a body's rates (theta2, omega2, B.alpha: the quantity after the last dot).
@@ -209,7 +209,7 @@ def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapp
 
 
 #: The health measures the energy figure draws, whichever a run has
-#: (mechval.health: a conservative scene's drift, else the balance residual).
+#: (mechval.judging.health: a conservative scene's drift, else the balance residual).
 ENERGY_MEASURES = ("energy_drift", "energy_balance")
 
 

@@ -18,7 +18,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 from markupsafe import Markup
 
-from mechval.outcome import Outcome
+from mechval.records.outcome import Outcome
 
 from .csv_files import neutralised
 

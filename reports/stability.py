@@ -8,7 +8,7 @@ import pandas as pd
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 from markupsafe import Markup
 
-from mechval.scenario import Scenario
+from mechval.model.scenario import Scenario
 
 from .build import TEMPLATES, Section, matrix_rows
 

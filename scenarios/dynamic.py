@@ -1,21 +1,21 @@
 """The load-time check of a torque-driven or free scene (both formats): its
 torque laws act at revolute joints, and its initial values assemble into a
-consistent initial state (`mechval.initial_state`: one value per degree of
+consistent initial state (`mechval.reference.initial_state`: one value per degree of
 freedom the drives leave, reachable, not at a toggle of the stated joints).
 
 The run itself is integrated when the reference runs (`mechval run`,
 `simulate`); a run that reaches a position its stated joints cannot
-parametrise is refused then, naming the time (`mechval.dynamics`).
+parametrise is refused then, naming the time (`mechval.reference.dynamics`).
 """
 
 from __future__ import annotations
 
 from typing import Mapping
 
-from mechval.dynamics import ForwardDynamics
-from mechval.linkages import build_mechanism
-from mechval.planar_constraints import MechanismError
-from mechval.scenario import Scenario, ScenarioError
+from mechval.reference.dynamics import ForwardDynamics
+from mechval.reference.linkages import build_mechanism
+from mechval.reference.planar.constraints import MechanismError
+from mechval.model.scenario import Scenario, ScenarioError
 
 
 def check_initial_state(scenario: Scenario, keys: Mapping[str, str] | None = None) -> None:

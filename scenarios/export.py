@@ -14,9 +14,9 @@ import math
 import re
 from typing import Any, Mapping
 
-from mechval.linkages import without_closed_form
-from mechval.mechanism import GROUND, BodyTorque, Joint, SpringDamper
-from mechval.scenario import DEFAULT_TOLERANCE, Scenario
+from mechval.reference.linkages import without_closed_form
+from mechval.model.mechanism import GROUND, BodyTorque, Joint, SpringDamper
+from mechval.model.scenario import DEFAULT_TOLERANCE, Scenario
 
 Point = tuple[float, float]
 

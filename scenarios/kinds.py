@@ -2,8 +2,8 @@
 `"slider_crank"`, `"slotted_lever"`, `"inverted_slider"`;
 docs/scenario-format.md): a file's few numbers — geometry, masses, the
 crank's drive, effects — expanded into the scene every scenario becomes
-(`mechval.scene`), with the kind's closed form beside it
-(`mechval.linkages.ClosedForm`), which the reference then uses.
+(`mechval.model.scene`), with the kind's closed form beside it
+(`mechval.reference.linkages.ClosedForm`), which the reference then uses.
 
 Every refusal is a `ScenarioError` naming the file, the dotted key and the
 reason. Beyond each key's own checks: a loop that cannot close at some
@@ -19,13 +19,13 @@ from typing import Any, Collection, Mapping
 
 import numpy as np
 
-from mechval.analysis import check_trustworthy
-from mechval.drive import DriveLaw
-from mechval.limits import check_scene
-from mechval.linkages import CRANK_PIVOT, LINKAGES, ClosedForm, crank_drive
-from mechval.mechanism import InitialValue, TorqueLaw
-from mechval.scenario import LinkMass, Scenario
-from mechval.scene import Scene
+from mechval.reference.analysis import check_trustworthy
+from mechval.model.drive import DriveLaw
+from mechval.reference.limits import check_scene
+from mechval.reference.linkages import CRANK_PIVOT, LINKAGES, ClosedForm, crank_drive
+from mechval.model.mechanism import InitialValue, TorqueLaw
+from mechval.model.scenario import LinkMass, Scenario
+from mechval.model.scene import Scene
 
 from .dynamic import check_initial_state
 from .tables import Reader, heading, run_tables, shown

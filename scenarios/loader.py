@@ -13,7 +13,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Collection, Mapping
 
-from mechval.scenario import Scenario, ScenarioError
+from mechval.model.scenario import Scenario, ScenarioError
 
 from .kinds import parse_kind
 from .planar import parse_planar

@@ -1,7 +1,7 @@
 """Planar files (`mechanism = "planar"`, docs/scenario-format.md#planar-files):
 any mechanism of rigid bodies, revolute and prismatic joints, drives and
 force elements, validated into a `Scenario` whose scene is the file's as
-written (`mechval.scene`; no closed form: the general reference solves it);
+written (`mechval.model.scene`; no closed form: the general reference solves it);
 joints left undriven take applied torque laws (`[[torque]]`) and the
 initial values a run starts from (`[[initial]]`), checked by assembling the
 consistent initial state (`scenarios.dynamic`).
@@ -10,7 +10,7 @@ Every refusal is a `ScenarioError` naming the file, the key and the reason.
 Beyond each key's own checks: an unknown body or point, a joint from a body
 to itself, a body not connected to the ground, two drives on one joint;
 then, by assembling the mechanism and following it over the run
-(`mechval.planar_solver`): drives that do not match the mobility (the
+(`mechval.reference.planar.solver`): drives that do not match the mobility (the
 Grübler count and the Jacobian rank both stated), a pose that cannot be
 assembled, an instant where the loop cannot close or the Jacobian is
 singular (its time named).
@@ -24,13 +24,13 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Collection, Mapping
 
-from mechval.drive import DriveLaw
-from mechval.limits import check_scene
-from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, SpringDamper, TorqueLaw
-from mechval.planar_solver import MechanismError, PlanarSolver
-from mechval.scenario import Scenario, ScenarioError
-from mechval.scene import Scene
+from mechval.model.drive import DriveLaw
+from mechval.reference.limits import check_scene
+from mechval.reference.linkages import build_mechanism
+from mechval.model.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, SpringDamper, TorqueLaw
+from mechval.reference.planar.solver import MechanismError, PlanarSolver
+from mechval.model.scenario import Scenario, ScenarioError
+from mechval.model.scene import Scene
 
 from .dynamic import check_initial_state
 from .tables import Reader, heading, run_tables, shown

@@ -12,9 +12,9 @@ import math
 import reprlib
 from typing import Any, Collection, Mapping
 
-from mechval.limits import shown_int
-from mechval.linkages import LINKAGES
-from mechval.scenario import DEFAULT_TOLERANCE, EngineTable, ScenarioError, TimeGrid, Tolerance
+from mechval.reference.limits import shown_int
+from mechval.reference.linkages import LINKAGES
+from mechval.model.scenario import DEFAULT_TOLERANCE, EngineTable, ScenarioError, TimeGrid, Tolerance
 
 #: Largest magnitude accepted for any number (SI units): far beyond any
 #: linkage, small enough that products like m·L²·ω² stay within float64.

@@ -20,12 +20,12 @@ import pandas as pd
 import pytest
 
 from mechval.adapter import EngineAdapter
-from mechval.compare import compare
+from mechval.judging.compare import compare
 from mechval.engines.registry import REFERENCE, EngineUnavailable, adapter, engine_names
 from mechval.harness.simulate import simulate
-from mechval.scenario import Scenario, ScenarioError
+from mechval.model.scenario import Scenario, ScenarioError
 from mechval.scenarios import load
-from mechval.signals import Signals
+from mechval.records.signals import Signals
 
 #: The columns of the failure table, most telling first.
 TABLE_COLUMNS = ["scenario", "engine", "setting", "signal", "max_error", "t_max", "relative_error", "bound", "ratio",

@@ -27,14 +27,14 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from mechval.audit import failures, format_audit
-from mechval.compare import HEALTH_BOUNDS, compare
-from mechval.dynamics import raw_dynamics
+from mechval.records.audit import failures, format_audit
+from mechval.judging.compare import HEALTH_BOUNDS, compare
+from mechval.reference.dynamics import raw_dynamics
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
-from mechval.scenario import ScenarioError
+from mechval.reference.linkages import build_mechanism
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import parse
-from mechval.signals import canonical_signals, signal_names
+from mechval.records.signals import canonical_signals, signal_names
 
 from . import mechanisms as dm
 from .comparison import assert_within_tolerance, compare_with_reference, engine_or_skip
@@ -248,7 +248,7 @@ class AdapterContract:
 
     @pytest.mark.parametrize("data", [FREE_LOOP, DAMPED_LOOP], ids=["free", "gravity-and-dampers"])
     def test_the_model_holds_only_the_scene(self, adapter, data):
-        """The compiled-model audit (`mechval.audit`): every mass, point,
+        """The compiled-model audit (`mechval.records.audit`): every mass, point,
         damper, the drive and gravity as the scene says, and no contact,
         limit, motor, body damping or other effect it does not ask for."""
         scenario = parse(data, f"{data['name']}.toml")
@@ -292,7 +292,7 @@ class AdapterContract:
         prescribed motion), the engine integrates the mechanism's own
         dynamics; body angles, positions, reactions and efforts stay within
         the default tolerances of the forward-dynamics reference
-        (`mechval.dynamics`, DOP853 at its RTOL) at the engine's default
+        (`mechval.reference.dynamics`, DOP853 at its RTOL) at the engine's default
         setting."""
         mech, times, frame = self.run_dynamic(adapter, name)
         reference = raw_dynamics(mech, times).frame

@@ -14,11 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ellipj, ellipk
 
-from mechval.drive import DriveLaw
-from mechval.linkages import build_mechanism
-from mechval.mechanism import (GROUND, Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, Mechanism,
+from mechval.model.drive import DriveLaw
+from mechval.reference.linkages import build_mechanism
+from mechval.model.mechanism import (GROUND, Body, BodyPose, BodyTorque, Drive, InitialValue, Joint, Mechanism,
                                SpringDamper, TorqueLaw)
-from mechval.planar_solver import default_pose
+from mechval.reference.planar.solver import default_pose
 from mechval.scenarios import load
 
 
@@ -39,7 +39,7 @@ def case(mech: Mechanism, initial: tuple[InitialValue, ...], pose) -> Case:
 
 
 def no_closed_form(t):
-    raise NotImplementedError("no closed form: solve with mechval.planar_solver or mechval.dynamics")
+    raise NotImplementedError("no closed form: solve with mechval.reference.planar.solver or mechval.reference.dynamics")
 
 
 def bar(name: str, mass: float, length: float) -> Body:

@@ -9,7 +9,7 @@ from typing import Sequence
 
 import pandas as pd
 
-from mechval.outcome import Outcome, Task
+from mechval.records.outcome import Outcome, Task
 from mechval.reports.build import write_report
 from mechval.reports.stability import stability_section
 

@@ -46,8 +46,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mechval.drive import DriveLaw
-from mechval.mechanism import GROUND, Body, BodyPose, Drive, Joint, Mechanism, SpringDamper
+from mechval.model.drive import DriveLaw
+from mechval.model.mechanism import GROUND, Body, BodyPose, Drive, Joint, Mechanism, SpringDamper
 
 # pkg/deTestSet/R/ex_andrews.R, `parameter` (SI units).
 m1, m2, m3, m4, m5, m6, m7 = .04325, .00365, .02373, .00706, .07050, .00706, .05498
@@ -109,7 +109,7 @@ def pose_near(q: np.ndarray, decimals: int = 2) -> dict[str, BodyPose]:
 
 
 def _no_closed_form(t):
-    raise NotImplementedError("Andrews' squeezer has no closed-form motion; solve it with mechval.planar_solver")
+    raise NotImplementedError("Andrews' squeezer has no closed-form motion; solve it with mechval.reference.planar.solver")
 
 
 def andrews_mechanism(law: DriveLaw | None = None, pose: dict[str, BodyPose] | None = None) -> Mechanism:

@@ -1,5 +1,5 @@
 """Torque-driven and free mechanisms for the forward-dynamics reference's
-tests (mechval.dynamics), each with the initial values it starts from and,
+tests (mechval.reference.dynamics), each with the initial values it starts from and,
 where there is one, its closed-form motion: the contract suite's four
 (`mechval.testing.mechanisms`: a pendulum, a crank under a torque law, the
 seed four-bar falling, a motored slider-crank) and more, built on the
@@ -13,7 +13,7 @@ from typing import Callable
 
 import andrews as A
 import planar_mechanisms as pm
-from mechval.mechanism import BodyPose, InitialValue, TorqueLaw
+from mechval.model.mechanism import BodyPose, InitialValue, TorqueLaw
 from mechval.testing.mechanisms import (Case, case, free_fourbar, motored_slider_crank,  # noqa: F401
                                         pendulum, pendulum_exact, spinning_crank, spinning_exact)
 

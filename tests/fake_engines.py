@@ -19,8 +19,8 @@ import numpy as np
 
 from mechval.engines import registry
 from mechval.engines.base import EngineAdapter, RawRun
-from mechval.dynamics import raw_dynamics
-from mechval.reference import raw_reference
+from mechval.reference.dynamics import raw_dynamics
+from mechval.reference.adapter import raw_reference
 
 
 class _Fake(EngineAdapter):

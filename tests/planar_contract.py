@@ -31,10 +31,10 @@ import numpy as np
 import pytest
 
 from conftest import engine_or_skip
-from mechval.audit import failures, force_item, format_audit
-from mechval.compare import compare
+from mechval.records.audit import failures, force_item, format_audit
+from mechval.judging.compare import compare
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from planar_scenes import SCENES, TWIN, scene
 from mechval.scenarios import parse
 

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from mechval.drive import DriveLaw
-from mechval.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, Joint, Mechanism, SpringDamper
+from mechval.model.drive import DriveLaw
+from mechval.model.mechanism import GROUND, Body, BodyPose, BodyTorque, Drive, Joint, Mechanism, SpringDamper
 # The slider-driven slider-crank is one of the contract suite's mechanisms.
 from mechval.testing.mechanisms import SLIDER, bar, slider_driven_slider_crank  # noqa: F401
 
 
 def _no_closed_form(t):
-    raise NotImplementedError("no closed form: solve with mechval.planar_solver")
+    raise NotImplementedError("no closed form: solve with mechval.reference.planar.solver")
 
 
 def circle_apex(a: np.ndarray, b: np.ndarray, ra: float, rb: float) -> np.ndarray:

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mechval.kinematics import step_rate
-from mechval.mechanism import Mechanism
+from mechval.model.kinematics import step_rate
+from mechval.model.mechanism import Mechanism
 
 
 def size(mech: Mechanism) -> float:

@@ -4,17 +4,20 @@ deliberate fault per engine), the command and the report section."""
 
 from __future__ import annotations
 
+import importlib
+import inspect
+
 import numpy as np
 import pandas as pd
 import pytest
 
 from conftest import BUILTIN, builtin_scenario, engine_or_skip
 from mechval.harness import cli
-from mechval.audit import (ABSENT_EFFECTS, AUDIT_RTOL, AS_SET, DIFFERS, MATCH, MISSING, NOTE, SCENE, Expectation,
+from mechval.records.audit import (ABSENT_EFFECTS, AUDIT_RTOL, AS_SET, DIFFERS, MATCH, MISSING, NOTE, SCENE, Expectation,
                            Reading, audit, expected_model, failures, format_audit)
-from mechval.audit import AuditResult
+from mechval.records.audit import AuditResult, ModelReader
 from mechval.harness.audit_run import audit_scenario
-from mechval.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.reports.audit import audit_section
 from mechval.harness.simulate import simulate
 
@@ -97,7 +100,7 @@ def failing_rows(result: AuditResult) -> set[tuple[str, str]]:
 
 
 def clock_dof(model):
-    from mechval.engines.mujoco_model import CLOCK
+    from mechval.engines.mujoco.model import CLOCK
     return model.m.jnt_dofadr[model.jid[CLOCK]]
 
 
@@ -122,10 +125,23 @@ MUJOCO_FAULTS = {
 
 
 @pytest.mark.engine
+@pytest.mark.parametrize("engine", ENGINES)
+def test_every_engine_reads_its_model_through_one_protocol(engine):
+    """Each engine's audit reader is a `ModelReader`: the protocol's
+    methods, with the protocol's signatures (issue 24: three readers once
+    had the same method names with different signatures)."""
+    engine_or_skip(engine)
+    reader = importlib.import_module(f"mechval.engines.{engine}.audit").Reader
+    assert issubclass(reader, ModelReader) and not inspect.isabstract(reader)
+    for name in ModelReader.__abstractmethods__ | {"table"}:
+        assert inspect.signature(getattr(reader, name)) == inspect.signature(getattr(ModelReader, name)), name
+
+
+@pytest.mark.engine
 @pytest.mark.parametrize("fault", MUJOCO_FAULTS)
 def test_mujoco_audit_catches_a_wrong_model(monkeypatch, fault):
     engine_or_skip("mujoco")
-    from mechval.engines import mujoco as adapter_module
+    from mechval.engines.mujoco import adapter as adapter_module
     change, rows = MUJOCO_FAULTS[fault]
     build = adapter_module.Model.__init__
 
@@ -142,7 +158,7 @@ def test_pybullet_audit_catches_defaults_left_on(monkeypatch):
     default velocity motors (friction) and gives shapeless links zero
     inertia: the audit must say so."""
     engine_or_skip("pybullet")
-    from mechval.engines import pybullet_model
+    from mechval.engines.pybullet import model as pybullet_model
     monkeypatch.setattr(pybullet_model, "disarm_defaults", lambda mechanism, model: None)
     rows = failing_rows(audit_scenario(builtin_scenario("fourbar-seed"), "pybullet"))
     assert rows == {(SCENE, "velocity damping of bodies"), (SCENE, "motors other than the drive"),
@@ -152,8 +168,8 @@ def test_pybullet_audit_catches_defaults_left_on(monkeypatch):
 @pytest.mark.engine
 def test_pybullet_audit_reads_back_what_the_build_changed(monkeypatch):
     engine_or_skip("pybullet")
-    from mechval.engines import pybullet_audit
-    from mechval.engines.pybullet_model import p
+    from mechval.engines.pybullet import audit as pybullet_audit
+    from mechval.engines.pybullet.model import p
     build = pybullet_audit.build
 
     def faulty(mechanism, *args):
@@ -174,7 +190,7 @@ def test_pybullet_audit_reads_back_what_the_build_changed(monkeypatch):
 def test_exudyn_audit_catches_a_wrong_model(monkeypatch):
     engine_or_skip("exudyn")
     import exudyn.itemInterface as eii
-    from mechval.engines import exudyn_audit
+    from mechval.engines.exudyn import audit as exudyn_audit
     prepare = exudyn_audit.prepare
 
     def faulty(mechanism, times, settings):

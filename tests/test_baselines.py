@@ -24,17 +24,17 @@ import pytest
 from conftest import BUILTIN, CLOSED_FORM, ENGINES, builtin_reference, builtin_scenario, engine_or_skip
 from fake_engines import registered
 from mechval.harness import baseline as bl
-from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND
+from mechval.reference.linkages import build_mechanism
+from mechval.model.mechanism import GROUND
 from mechval.harness.baseline_run import check_run, fed
 from mechval.harness.cli import main
 from mechval.engines import registry
 from mechval.engines.registry import EngineUnavailable, availability
 from mechval.reports.build import provenance
 from mechval.harness.runner import tasks_for
-from mechval.outcome import Task
+from mechval.records.outcome import Task
 from mechval.scenarios import builtin_path
-from mechval.signals import Signals
+from mechval.records.signals import Signals
 from mechval.harness.simulate import simulate
 
 ROOT = Path(__file__).resolve().parent.parent / "baselines"

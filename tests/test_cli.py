@@ -12,7 +12,7 @@ import pytest
 
 from conftest import builtin_reference
 from mechval.scenarios import builtin_path
-from mechval.signals import signal_names
+from mechval.records.signals import signal_names
 
 MECHVAL = str(Path(sys.executable).parent / "mechval")
 
@@ -41,7 +41,7 @@ def test_list_imports_nothing_heavy():
             libraries.add(adapter_class(name).library.split(".")[0])
         except EngineUnavailable:       # not installed: it cannot be imported either
             pass
-    heavy = sorted({"numpy", "pandas", "scipy", "mechval.scenario", "mechval.scenarios.loader"} | libraries)
+    heavy = sorted({"numpy", "pandas", "scipy", "mechval.model.scenario", "mechval.scenarios.loader"} | libraries)
     code = (f"import sys; from mechval.harness.cli import main; status = main(['list']); "
             f"print(status, [m for m in {heavy!r} if m in sys.modules])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
@@ -50,9 +50,9 @@ def test_list_imports_nothing_heavy():
 
 def test_the_listing_reads_what_the_loader_reads():
     """The listing finds the built-ins and escapes text without importing
-    the loader or `mechval.scenario`: the same names and the same lines."""
+    the loader or `mechval.model.scenario`: the same names and the same lines."""
     from mechval.harness.listing import builtin_files, one_line
-    from mechval.scenario import one_line as scenario_one_line
+    from mechval.model.scenario import one_line as scenario_one_line
     from mechval.scenarios import builtin_names
     assert list(builtin_files()) == builtin_names()
     assert all(path == builtin_path(name) for name, path in builtin_files().items())

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from mechval.compare import ZERO_IN_THEORY, compare
-from mechval.scenario import Tolerance
-from mechval.signals import Signals
+from mechval.judging.compare import ZERO_IN_THEORY, compare
+from mechval.model.scenario import Tolerance
+from mechval.records.signals import Signals
 
 
 def signals(**columns) -> Signals:

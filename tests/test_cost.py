@@ -17,15 +17,15 @@ from plotly.offline import get_plotlyjs
 from fake_engines import registered
 from mechval.harness.cli import main
 from mechval.harness.cost import HEADLINE, REFERENCE, nice_count, points_for, sweep
-from mechval.cost_tables import asymptotic_range, cheapest, convergence
+from mechval.judging.cost_tables import asymptotic_range, cheapest, convergence
 from mechval.engines import registry
 from mechval.harness.executors import LocalExecutor
 from mechval.reports import build
 from mechval.reports.cost_report import cost_section
 from mechval.scenarios import builtin_path, load
 from mechval.harness.simulate import simulate
-from mechval.kinematics import step_rate
-from mechval.linkages import build_mechanism
+from mechval.model.kinematics import step_rate
+from mechval.reference.linkages import build_mechanism
 
 ENGINES = [name for name, reason in registry.availability().items() if not reason]
 #: Columns that must not depend on where a point ran (times naturally do).

@@ -21,11 +21,11 @@ import pytest
 
 from conftest import ENGINES, engine_or_skip
 from mechval.harness.cli import build_parser
-from mechval.linkages import LINKAGES, build_mechanism
+from mechval.reference.linkages import LINKAGES, build_mechanism
 from mechval.harness.simulate import simulate
-from mechval.scenario import DEFAULT_TOLERANCE
+from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.scenarios import load, parse
-from mechval.signals import SIGNAL_CLASS, signal_names
+from mechval.records.signals import SIGNAL_CLASS, signal_names
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -160,14 +160,14 @@ def imported_layers(folder: str) -> dict[str, set[str]]:
     """Layer → the files of `folder` that import from it (function-local
     imports included; relative imports stay inside the folder's package)."""
     found: dict[str, set[str]] = {}
-    for path in sorted((ROOT / folder).glob("*.py")):
+    for path in sorted((ROOT / folder).rglob("*.py")):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
             for name in names:
                 layer = layer_of(name)
                 if layer and layer != folder:
-                    found.setdefault(layer, set()).add(path.name)
+                    found.setdefault(layer, set()).add(str(path.relative_to(ROOT / folder)))
     return found
 
 
@@ -184,6 +184,42 @@ def test_the_layers_hold_in_the_imports():
     for folder, may in allowed.items():
         wrong = {layer: files for layer, files in imported_layers(folder).items() if layer not in may}
         assert not wrong, f"{folder}/ imports {wrong}"
+
+
+def type_hint_only(tree: ast.Module) -> set[int]:
+    """ids of the import nodes under `if TYPE_CHECKING:` (type hints only)."""
+    return {id(node) for block in ast.walk(tree) if isinstance(block, ast.If)
+            and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
+            for node in ast.walk(block)}
+
+
+def test_core_subpackages_hold_in_the_imports():
+    """Inside core/, each subpackage (or the contract's modules) imports only
+    what docs/README.md's second "Layers" table allows it."""
+    rows = [r for r in table_rows(section("README.md", "Layers")) if r[0].startswith("`mechval.")]
+    row_of, allowed = {}, {}
+    for packages, _holds, may in rows:
+        names = [name.split(".")[1] for name in re.findall(r"`(mechval\.\w+)`", packages)]
+        for name in names:
+            row_of[name] = names[0]
+        allowed[names[0]] = set(re.findall(r"`(\w+)`", may))
+    core = ROOT / "core"
+    assert set(row_of) == {p.stem if p.is_file() else p.name for p in core.iterdir()
+                           if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").exists()}
+    wrong = []
+    for path in sorted(core.rglob("*.py")):
+        part = path.relative_to(core).parts[0].removesuffix(".py")
+        if part == "__init__":
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        hints = type_hint_only(tree)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and id(node) not in hints:
+                target = (node.module or "").split(".")
+                other = row_of.get(target[1]) if target[0] == "mechval" and len(target) > 1 else None
+                if other and other != row_of[part] and other not in allowed[row_of[part]]:
+                    wrong.append(f"{path.relative_to(core)} imports {node.module}")
+    assert not wrong, wrong
 
 
 def scratch_environment(root: Path) -> Path:

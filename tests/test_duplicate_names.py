@@ -15,7 +15,7 @@ from mechval.harness.cost import sweep
 from mechval.engines import registry
 from mechval.harness.executors import LocalExecutor
 from mechval.harness.runner import references_for, tasks_for
-from mechval.scenario import ScenarioError
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import builtin_path, load
 
 

@@ -1,5 +1,5 @@
 """Torque-driven and free scenes as files (issue 15): the built-ins load and
-name their source, their reference balances energy (mechval.energy) and
+name their source, their reference balances energy (mechval.judging.energy) and
 closes every joint, Andrews' scene file reproduces the Test Set's seven
 coordinates at t = 0.03 s; the format's refusals name the file, the key and
 the reason; the step rule's peak rate Ω of a free scene is its reference
@@ -21,13 +21,13 @@ import pytest
 
 import andrews as A
 from conftest import BUILTIN, CLOSED_FORM, builtin_scenario
-from mechval.dynamics import raw_dynamics
+from mechval.reference.dynamics import raw_dynamics
 from mechval.harness.cli import main
-from mechval.health import joint_gaps
-from mechval.kinematics import step_rate
-from mechval.linkages import build_mechanism
+from mechval.judging.health import joint_gaps
+from mechval.model.kinematics import step_rate
+from mechval.reference.linkages import build_mechanism
 from mechval.harness.simulate import simulate
-from mechval.scenario import ScenarioError
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import builtin_path, parse
 from test_dynamics import ACCURACY, ANDREWS, DRIFT, energy_residual, gauss_instants
 from scales import size
@@ -77,7 +77,7 @@ def test_reference_balances_energy_and_closes_every_joint(name):
 def test_free_double_fourbar_keeps_its_energy():
     """No torque law, no damper: its measure is the energy drift, which the
     reference holds to ACCURACY of the kinetic energy's range."""
-    from mechval.energy import kinetic_energy, potential_energy
+    from mechval.judging.energy import kinetic_energy, potential_energy
     mech, solution = at_gauss_instants("planar-extra/double-fourbar-falling")
     kinetic = kinetic_energy(mech, solution.frame)
     energy = kinetic + potential_energy(mech, solution.frame)
@@ -89,7 +89,7 @@ def test_andrews_scene_file_reaches_the_published_coordinates_at_30_ms():
     """The file, through the reference adapter at its own samples: the
     seven Test Set coordinates at t = 0.03 s within ANDREWS relative each
     (measured as the Python-built case: β 7.3e-11 … ε 3.1e-13)."""
-    from mechval.reference import ReferenceAdapter
+    from mechval.reference.adapter import ReferenceAdapter
     scenario = builtin_scenario("andrews-squeezer-motor")
     raw = ReferenceAdapter().run(build_mechanism(scenario), scenario.time.t, {}).frame
     assert raw["t"].iloc[-1] == A.T1
@@ -247,11 +247,11 @@ def test_a_motion_the_reference_cannot_integrate_is_refused_in_one_line(case, tm
 
 
 def test_a_run_too_long_to_integrate_is_refused_naming_time_end(monkeypatch):
-    """The integration's evaluation limit (mechval.dynamics.MAX_EVALUATIONS)
+    """The integration's evaluation limit (mechval.reference.dynamics.MAX_EVALUATIONS)
     stops a run that would take hours; here lowered to 50 to be quick."""
-    import mechval.dynamics as dynamics
+    import mechval.reference.dynamics as dynamics
     from mechval.adapter import Unrepresentable
-    from mechval.reference import ReferenceAdapter
+    from mechval.reference.adapter import ReferenceAdapter
     monkeypatch.setattr(dynamics, "MAX_EVALUATIONS", 50)
     monkeypatch.setattr(dynamics, "_runs", type(dynamics._runs)())     # integrate afresh, not from a kept run
     scenario = builtin_scenario("slider-crank-motor")
@@ -265,7 +265,7 @@ def test_the_documented_examples_load_and_run():
     TOML block with [[initial]] or a [drive] type) load and the reference
     integrates them over their runs."""
     from test_docs import blocks
-    from mechval.reference import ReferenceAdapter
+    from mechval.reference.adapter import ReferenceAdapter
     texts = [p.values[0] for p in blocks("toml") if "[[initial]]" in p.values[0] or 'type = "torque"' in p.values[0]]
     assert len(texts) >= 2
     for text in texts:

@@ -1,4 +1,4 @@
-"""The forward-dynamics reference (mechval.dynamics) against what it must
+"""The forward-dynamics reference (mechval.reference.dynamics) against what it must
 reproduce:
 
 - closed forms: a pendulum released from rest (elliptic functions), a
@@ -9,12 +9,12 @@ reproduce:
   unchanged when the tolerance is tightened to scipy's finest (TIGHTEST;
   tests/test_dynamics_accuracy.py holds every signal against it, per class,
   as the comparison does), and the prescribed-motion
-  reference (mechval.planar_solver) driven along the integrated motion
+  reference (mechval.reference.planar.solver) driven along the integrated motion
   needing exactly the applied torque, with the same reactions;
 - refusals that name the key.
 
 Bounds (STYLE.md §4): the integrator keeps each step's error within
-rtol = 1e-13 (relative, `mechval.dynamics.RTOL`); over a run the errors of
+rtol = 1e-13 (relative, `mechval.reference.dynamics.RTOL`); over a run the errors of
 its steps add up. On the closed forms below the global error is ≤ 9·rtol
 (the pendulum after 2 s, five swings: 8.4e-13 rad), so `ACCURACY` =
 100·rtol bounds the global error of a run of a few seconds with a decade
@@ -34,16 +34,16 @@ from scipy.interpolate import CubicHermiteSpline
 import andrews as A
 import dynamic_mechanisms as dm
 from mechval.adapter import Unrepresentable, mechanism_features
-from mechval.dynamics import RTOL, ForwardDynamics, raw_dynamics
-from mechval.energy import applied_power, kinetic_energy, potential_energy
-from mechval.health import joint_gaps
-from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, Body, BodyPose, Drive, InitialValue, Joint, TorqueLaw
-from mechval.planar_constraints import MechanismError
-from mechval.planar_solver import raw_planar
-from mechval.reference import ReferenceAdapter
+from mechval.reference.dynamics import RTOL, ForwardDynamics, raw_dynamics
+from mechval.judging.energy import applied_power, kinetic_energy, potential_energy
+from mechval.judging.health import joint_gaps
+from mechval.reference.linkages import build_mechanism
+from mechval.model.mechanism import GROUND, Body, BodyPose, Drive, InitialValue, Joint, TorqueLaw
+from mechval.reference.planar.constraints import MechanismError
+from mechval.reference.planar.solver import raw_planar
+from mechval.reference.adapter import ReferenceAdapter
 from mechval.scenarios import load
-from mechval.planar_positions import mechanism_size as size  # L: joint, centre-of-mass and force points
+from mechval.reference.planar.positions import mechanism_size as size  # L: joint, centre-of-mass and force points
 from test_dynamics_accuracy import TIGHTEST
 
 ACCURACY = 100 * RTOL
@@ -167,7 +167,7 @@ def energy_residual(mech, raw, span: float) -> float:
     """max |E(t) − E(0) − W(t)| over the panel edges of `raw` (a run at
     gauss_instants(span)), relative to the largest of the kinetic energy,
     the potential energy's change and the work W of the applied torques and
-    dampers (mechval.energy, from the raw columns alone)."""
+    dampers (mechval.judging.energy, from the raw columns alone)."""
     _, edges, weights = gauss_instants(span)
     kinetic, potential = kinetic_energy(mech, raw), potential_energy(mech, raw)
     power = applied_power(mech, raw)
@@ -197,7 +197,7 @@ def test_energy_balance_fails_without_the_damper_losses():
 
 @pytest.mark.parametrize("name", sorted(dm.CASES))
 def test_constraint_drift(name):
-    """Every joint closes at every output (mechval.health's gap) to 1e-12
+    """Every joint closes at every output (mechval.judging.health's gap) to 1e-12
     of the mechanism's size, and the run's own measure says so."""
     case, solution = solved(name)
     assert joint_gaps(case.mech, solution.frame).max() <= DRIFT * size(case.mech)

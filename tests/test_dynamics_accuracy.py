@@ -1,8 +1,8 @@
-"""How close the forward-dynamics reference (mechval.dynamics, at its
+"""How close the forward-dynamics reference (mechval.reference.dynamics, at its
 default tolerance RTOL) comes to the motion it integrates, measured as the
 comparison measures engines: per signal, max |reference − tighter run| over
 the run, against the largest peak of the signal's class (angle, velocity,
-acceleration, force, torque, …: mechval.signals.SIGNAL_CLASS). The tighter
+acceleration, force, torque, …: mechval.records.signals.SIGNAL_CLASS). The tighter
 run is the same integration at scipy's finest tolerance, TIGHTEST (its own
 error, against a run whose steps are capped, is far below the bound:
 tests/bench/dynamics_accuracy.py prints it).
@@ -25,11 +25,11 @@ import tomllib
 import numpy as np
 import pytest
 
-from mechval import dynamics
-from mechval.dynamics import RTOL, raw_dynamics
-from mechval.linkages import build_mechanism
+from mechval.reference import dynamics
+from mechval.reference.dynamics import RTOL, raw_dynamics
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import load, parse
-from mechval.signals import SIGNAL_CLASS, canonical_signals
+from mechval.records.signals import SIGNAL_CLASS, canonical_signals
 
 #: The reference within this fraction of each class's peak (the goal: two
 #: orders below the tightest tolerance a scene may ask of an engine).

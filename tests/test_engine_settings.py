@@ -15,8 +15,8 @@ import pytest
 from conftest import ENGINES, engine_or_skip
 from mechval.harness import cli
 from mechval.engines.registry import EngineUnavailable, adapter_class
-from mechval.linkages import build_mechanism
-from mechval.scenario import EngineTable, ScenarioError
+from mechval.reference.linkages import build_mechanism
+from mechval.model.scenario import EngineTable, ScenarioError
 from mechval.scenarios import builtin_path, parse
 from mechval.testing.scenes import slider_crank
 
@@ -167,7 +167,7 @@ def test_solimp_as_a_list_or_a_string():
     accepted, recorded as the string of the checked numbers, and compiled
     as those numbers."""
     engine = engine_or_skip("mujoco")
-    from mechval.engines.mujoco_run import Model
+    from mechval.engines.mujoco.run import Model
     for value in ([0.9, 0.95, 0.001, 0.5, 2], "0.9  0.95\t0.001 0.5 2"):
         scenario = parse(slider_crank(time={"end": 0.1, "samples": 11}, engines={"mujoco": {"solimp": value}}), "x")
         mech = build_mechanism(scenario)

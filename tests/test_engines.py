@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import BUILTIN, ENGINES, builtin_scenario, engine_or_skip
-from mechval.compare import compare
+from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance
 from mechval.harness.simulate import simulate
 
@@ -61,7 +61,7 @@ def test_raw_columns_are_the_ones_the_harness_reads(engine_name):
     """A built-in adapter's raw frame holds t and the Mechanism's motion and
     reaction columns, nothing more: those are what the canonical signals and
     the run health read (an extra column would be read by nobody)."""
-    from mechval.linkages import build_mechanism
+    from mechval.reference.linkages import build_mechanism
     from mechval.scenarios import parse
     scenario = parse(POINT_MASS_SCENES["slotted-lever-point-block"] | {"time": {"end": 0.1, "samples": 11}}, "x")
     mechanism = build_mechanism(scenario)

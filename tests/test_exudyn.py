@@ -17,15 +17,15 @@ import andrews as A
 import dynamic_mechanisms as dm
 from mechval.testing.contract import ANGLE, AdapterContract, dynamic_errors
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
-from mechval.audit import audit, expected_model, failures
-from mechval.compare import compare
+from mechval.records.audit import audit, expected_model, failures
+from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance, discrepancy_table
-from mechval.drive import DriveLaw
-from mechval.dynamics import raw_dynamics
-from mechval.linkages import build_mechanism
+from mechval.model.drive import DriveLaw
+from mechval.reference.dynamics import raw_dynamics
+from mechval.reference.linkages import build_mechanism
 from mechval.adapter import Unrepresentable
-from mechval.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, InitialValue, Joint, Mechanism
-from mechval.reference import raw_reference
+from mechval.model.mechanism import GROUND, MOTION_QUANTITIES, Body, Drive, InitialValue, Joint, Mechanism
+from mechval.reference.adapter import raw_reference
 from mechval.scenarios import parse
 from mechval.testing.scenes import fourbar, slider_crank
 
@@ -39,9 +39,9 @@ except ImportError as exc:
     pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"exudyn cannot be imported ({exc})")]
 else:
     pytestmark = pytest.mark.engine     # every test here runs Exudyn
-    from mechval.engines.exudyn_audit import Reader
-    from mechval.engines.exudyn_model import build_model, simulation_settings, solve, torque_law_load_names
-    from mechval.engines.exudyn_run import prepare
+    from mechval.engines.exudyn.audit import Reader
+    from mechval.engines.exudyn.model import build_model, simulation_settings, solve, torque_law_load_names
+    from mechval.engines.exudyn.run import prepare
 
 #: fourbar-seed at the default setting: every signal within this fraction
 #: of its peak (measured 1.7e-5 at the derived step 7.7e-4 s).
@@ -380,17 +380,18 @@ def test_the_audit_reads_back_the_torque_law_and_the_free_joint(adapter):
     ask for)."""
     mech, times = dynamic_case("motored-slider-crank", 1.0)
     settings = adapter.default_settings(mech, times)
-    model, _, t0 = prepare(mech, times, settings)
-    readings = Reader(mech, model, model.start, t0, times).readings()
+    model, simulation, t0 = prepare(mech, times, settings)
+    readings = Reader(mech, model, t0, times, settings, simulation).readings()
     assert failures(audit(expected_model(mech), readings)).empty
     louder = dataclasses.replace(mech.torque_drives[0], amplitude=0.6)
     table = audit(expected_model(dataclasses.replace(mech, torque_drives=(louder,))), readings)
     assert failures(table)[["item", "quantity"]].values.tolist() == [["torque law motor", "amplitude"]]
 
     half, times = dynamic_case("half-driven-five-bar", 1.0)
-    model, _, t0 = prepare(half, times, adapter.default_settings(half, times))
+    half_settings = adapter.default_settings(half, times)
+    model, simulation, t0 = prepare(half, times, half_settings)
     free = dynamic_case("free-five-bar", 1.0)[0]
-    different = failures(audit(expected_model(free), Reader(free, model, model.start, t0, times).readings()))
+    different = failures(audit(expected_model(free), Reader(free, model, t0, times, half_settings, simulation).readings()))
     assert different[["item", "quantity"]].values.tolist() == [["joint O1", "prescribed motion"],
                                                                 ["scene", "motors other than the drive"],
                                                                 ["scene", "other constraints"]]

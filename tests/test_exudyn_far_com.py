@@ -2,12 +2,12 @@
 of mass d metres out along it).
 
 Far beyond the mechanism's size the scene is refused up front
-(`mechval.limits.MAX_COM_DISTANCE`): Exudyn had called the four-bar
+(`mechval.reference.limits.MAX_COM_DISTANCE`): Exudyn had called the four-bar
 "redundant constraints" at d = 1e9 m, and the reference's assembly crashed
 the run at 1e12 m (exit 1 with a traceback). Within the bound Exudyn's
 Newton stopped ("SolveDynamic terminated") from about 30 m: its absolute
 tolerance was scaled by the forces alone, while the residual's moment rows
-grow with the arm; the scale now takes the arm in (`exudyn_run.force_scale`).
+grow with the arm; the scale now takes the arm in (`exudyn.run.force_scale`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import engine_or_skip
-from mechval.compare import compare, passed
+from mechval.judging.compare import compare, passed
 from mechval.testing import discrepancy_table
 from mechval.harness import cli
 from mechval.harness.simulate import simulate

@@ -13,12 +13,12 @@ import tomllib
 import pytest
 
 from conftest import builtin_reference, builtin_scenario, engine_or_skip
-from mechval.audit import failures
-from mechval.compare import compare, passed
+from mechval.records.audit import failures
+from mechval.judging.compare import compare, passed
 from mechval.testing import discrepancy_table
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, Body, Joint, Mechanism
+from mechval.reference.linkages import build_mechanism
+from mechval.model.mechanism import GROUND, Body, Joint, Mechanism
 from mechval.scenarios import parse
 
 pytestmark = pytest.mark.engine
@@ -110,7 +110,7 @@ def test_a_torque_law_between_two_moving_links(adapter):
                                           ("slider-driven-slider-crank", "guide.M")])
 def test_a_slide_s_couple_is_compared(adapter, name, couple, setting):
     """Exudyn reports no couple of a slide; the adapter derives it from the
-    balance of the slide's body (`exudyn_slide`), so it is compared like any
+    balance of the slide's body (`exudyn.slide`), so it is compared like any
     signal instead of missing: within its bound on the built-ins with a
     slide between moving links (hand-pump, shaper-quick-return) and on a
     ground guide (slider-driven-slider-crank, with a damper, a spring and a
@@ -128,7 +128,7 @@ def test_slides_whose_balances_cannot_tell_their_couples_apart_stay_missing():
     """Two slides between the ground and one block (a redundant guide): one
     body's balance cannot give two couples, so they are missing with the
     reason rather than split arbitrarily."""
-    from mechval.engines.exudyn_slide import balance_bodies
+    from mechval.engines.exudyn.slide import balance_bodies
     block = Body("block", 1.0, (0.0, 0.0), 1e-3)
     slides = (Joint("g1", "prismatic", GROUND, "block", (0.0, 0.0), (0.0, 0.0)),
               Joint("g2", "prismatic", GROUND, "block", (0.0, 0.1), (0.0, 0.1)))

@@ -14,11 +14,11 @@ import pytest
 
 from conftest import builtin_scenario, engine_or_skip
 from mechval.adapter import mechanism_features
-from mechval.audit import failures
+from mechval.records.audit import failures
 from mechval.harness.audit_run import audit_scenario
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
-from mechval.scenario import ScenarioError
+from mechval.reference.linkages import build_mechanism
+from mechval.model.scenario import ScenarioError
 from planar_contract import PlanarContract
 from planar_scenes import scene
 
@@ -35,7 +35,7 @@ def test_audit_catches_wrong_force_elements_and_drives(monkeypatch):
     """One fault per kind of new element, injected after the adapter's build
     into every element of that kind: exactly those elements' rows differ."""
     engine_or_skip("exudyn")
-    from mechval.engines import exudyn_audit
+    from mechval.engines.exudyn import audit as exudyn_audit
     prepare = exudyn_audit.prepare
 
     def objects_of(mbs):

@@ -8,7 +8,7 @@ t = 0) and refused where the loop cannot close, failing valid scenes in
 `mechval run` (exit 1, "the pose cannot be assembled … at t = -0.14 s").
 Now it is halved until the reference closes over it on the run's branch,
 and index-3's spectral radius is lowered so that the transient still dies
-within the shorter pre-roll (`exudyn_run.prepare`).
+within the shorter pre-roll (`exudyn.run.prepare`).
 
 The three scenes are copies of built-ins, changed here (no source):
 - a slider-driven slider-crank (`slider-driven-slider-crank`, guide tilted
@@ -30,7 +30,7 @@ import pandas as pd
 import pytest
 
 from conftest import engine_or_skip
-from mechval.compare import compare, passed
+from mechval.judging.compare import compare, passed
 from mechval.testing import discrepancy_table
 from mechval.harness import cli
 from mechval.harness.simulate import simulate
@@ -111,7 +111,7 @@ def test_trap_a_shortened_pre_roll_at_the_set_spectral_radius_leaves_the_transie
     """Why ρ is lowered: the 43 steps the slider's loop closes over, at
     ρ = 0.9, leave index-3's start-up transient far above the default
     bounds at the first samples (measured 13× them on conrod.ax)."""
-    from mechval.engines import exudyn_run
+    from mechval.engines.exudyn import run as exudyn_run
     monkeypatch.setattr(exudyn_run, "index3_spectral_radius", lambda rho, steps: rho)
     scenario = load(scenes["slider-near-dead-centre"])
     records = compare(simulate(scenario, "reference"), simulate(scenario, adapter, {"solver": "index3"}),
@@ -124,7 +124,7 @@ def test_no_pre_roll_at_all_leaves_only_the_first_reactions_missing(adapter, sce
     """Where not even one step before t = 0 closes, the run starts at the
     first sample: its reactions there are missing with the reason, the
     rest of the run is compared as usual."""
-    from mechval.engines import exudyn_run
+    from mechval.engines.exudyn import run as exudyn_run
     monkeypatch.setattr(exudyn_run, "_start_on_the_run_s_branch", lambda mechanism, t, first: pd.DataFrame())
     scenario = load(scenes["slider-near-dead-centre"])
     signals = simulate(scenario, adapter)

@@ -321,7 +321,7 @@ def test_csv_replaces_only_a_regular_file(tmp_path, fakes, no_engine_work, capsy
 def test_a_file_made_meanwhile_is_not_replaced_unless_regular(tmp_path):
     """The same rule at the rename itself (a FIFO made while the CSV was
     being written), with the path the user named in the error."""
-    from mechval.signals import write_atomically
+    from mechval.records.signals import write_atomically
     path = tmp_path / "x.csv"
 
     def write(f):
@@ -391,7 +391,7 @@ def test_a_symlink_loop_on_the_way_is_refused_before_any_engine_runs(tmp_path, f
 
 KILLED_WRITER = """
 import os, signal, sys
-from mechval.signals import write_folder_atomically
+from mechval.records.signals import write_folder_atomically
 
 def fill(folder):
     (folder / "index.html").write_text("half a report")
@@ -406,7 +406,7 @@ def test_a_killed_report_writer_leaves_a_folder_the_next_write_removes(tmp_path)
     writer is gone) and has been left alone for STALE_AFTER_S; a live
     writer's folder and anything mechval did not make stay."""
     import fcntl
-    from mechval.outputs import STALE_AFTER_S, write_folder_atomically
+    from mechval.records.outputs import STALE_AFTER_S, write_folder_atomically
     parent = tmp_path / "reports"
     killed = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(parent / "first")], timeout=120)
     assert killed.returncode == -signal.SIGKILL

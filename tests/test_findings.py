@@ -10,14 +10,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mechval.findings import Finding, Measurement
+from mechval.records.findings import Finding, Measurement
 from mechval.reports.findings import findings_section
 
 #: Figures measured on PyBullet 3.2.7: the slide sensor reads N and M at
 #: 1.5× the exact value (error 0.500 at every step, 1e-3 … 1e-5 s); the
 #: two-link chain's pivot force is off by 0.176 (0.148 at 1e-3 s, 0.179 at
 #: 1e-5 s). A release that changes them has changed the bug: update the
-#: finding (engines/pybullet_findings.py) and these figures.
+#: finding (engines/pybullet/findings.py) and these figures.
 SLIDE_SENSOR_ERROR = 0.500
 NON_LEAF_SENSOR_ERROR = 0.176
 #: The probes' control cases read the exact value to round-off; the chain's
@@ -30,13 +30,13 @@ ALPHA = 1e-9
 @pytest.fixture(scope="module")
 def probes():
     pytest.importorskip("pybullet")
-    from mechval.engines import pybullet_findings
+    from mechval.engines.pybullet import findings as pybullet_findings
     return pybullet_findings
 
 
 def update_message(m: Measurement) -> str:
     return (f"PyBullet {m.version}: {m.finding.title}: measured {m.describe()}; the finding changed or is "
-            f"fixed in this release: update {m.finding.key} in engines/pybullet_findings.py (until=, figure) "
+            f"fixed in this release: update {m.finding.key} in engines/pybullet/findings.py (until=, figure) "
             "and the workaround")
 
 

@@ -32,7 +32,7 @@ import pytest
 from conftest import BUILTIN, CLOSED_FORM, ENGINES, engine_or_skip
 from mechval.harness.cli import main
 from mechval.scenarios import builtin_path
-from mechval.signals import SIGNAL_CLASS
+from mechval.records.signals import SIGNAL_CLASS
 from toml_fuzz import Case, mutate, mutate_text
 from twins import twin_document
 
@@ -164,7 +164,7 @@ def engine_document(name: str, engine: str) -> dict:
     table: engine runs take a second or less) and an [engines.ENGINE] table
     holding every setting the adapter derives for it, so that mutations
     reach the settings too."""
-    from mechval.linkages import build_mechanism
+    from mechval.reference.linkages import build_mechanism
     from mechval.scenarios import parse
     doc = document(name)
     if isinstance(doc.get("time"), dict):
@@ -312,9 +312,9 @@ def test_an_engine_blow_up_is_one_line_without_numpy_warnings(tmp_path, engine):
 
 
 def test_health_of_an_all_nan_run_warns_nothing():
-    from mechval.health import health
-    from mechval.linkages import build_mechanism
-    from mechval.reference import raw_reference
+    from mechval.judging.health import health
+    from mechval.reference.linkages import build_mechanism
+    from mechval.reference.adapter import raw_reference
     from mechval.scenarios import load
     for name in ("fourbar-seed", "slider-crank"):
         mechanism = build_mechanism(load(name))
@@ -327,7 +327,7 @@ def test_health_of_an_all_nan_run_warns_nothing():
 
 
 def test_a_scenario_name_is_at_most_100_characters(tmp_path):
-    from mechval.scenario import ScenarioError
+    from mechval.model.scenario import ScenarioError
     from mechval.scenarios import parse
     for name in ("fourbar-seed", "twin/fourbar-seed"):
         doc = document(name)
@@ -340,7 +340,7 @@ def test_a_scenario_name_is_at_most_100_characters(tmp_path):
 def test_a_built_in_name_names_a_built_in(tmp_path, capsys):
     """`../../x` once loaded x.toml from wherever it led: a path outside
     scenarios/ needs its .toml."""
-    from mechval.scenario import ScenarioError
+    from mechval.model.scenario import ScenarioError
     from mechval.scenarios import load
     (tmp_path / "x.toml").write_text(builtin_path("slider-crank").read_text(encoding="utf-8"), encoding="utf-8")
     escape = os.path.relpath(tmp_path / "x", builtin_path("x").parent)

@@ -12,7 +12,7 @@ import functools
 import pytest
 
 from conftest import BUILTIN, CANNOT_RUN, ENGINES, builtin_scenario, engine_or_skip
-from mechval.scenario import ScenarioError, TimeGrid
+from mechval.model.scenario import ScenarioError, TimeGrid
 from mechval.scenarios import parse
 from mechval.harness.simulate import simulate
 from mechval.testing.scenes import slider_crank

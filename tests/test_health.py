@@ -1,5 +1,5 @@
-"""Run health (mechval.health) on torque-driven and free motion, and the
-comparison's error growth (mechval.compare.error_growth):
+"""Run health (mechval.judging.health) on torque-driven and free motion, and the
+comparison's error growth (mechval.judging.compare.error_growth):
 
 - the reference's own health on the forward-dynamics cases of
   tests/dynamic_mechanisms.py: energy drift, energy balance, constraint
@@ -23,13 +23,13 @@ import pandas as pd
 import pytest
 
 import dynamic_mechanisms as dm
-from mechval.compare import COLUMNS, GROWTH_COLUMNS, HEALTH_BOUNDS, QUADRATURE_SHARE, compare, error_growth
-from mechval.dynamics import raw_dynamics
-from mechval.energy import conservative, work, work_error
-from mechval.health import health
-from mechval.planar_positions import mechanism_size
-from mechval.scenario import Tolerance
-from mechval.signals import Signals
+from mechval.judging.compare import COLUMNS, GROWTH_COLUMNS, HEALTH_BOUNDS, QUADRATURE_SHARE, compare, error_growth
+from mechval.reference.dynamics import raw_dynamics
+from mechval.judging.energy import conservative, work, work_error
+from mechval.judging.health import health
+from mechval.reference.planar.positions import mechanism_size
+from mechval.model.scenario import Tolerance
+from mechval.records.signals import Signals
 from test_dynamics import ACCURACY, DRIFT, PRESCRIBED, solved
 
 CONSERVATIVE = [name for name in sorted(dm.CASES) if conservative(dm.CASES[name]().mech)]

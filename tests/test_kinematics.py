@@ -1,4 +1,4 @@
-"""The planar kinematics kernel (`mechval.kinematics`) against motions
+"""The planar kinematics kernel (`mechval.model.kinematics`) against motions
 written independently with complex numbers: a lever that turns and whose
 pivot moves, and a block sliding along the lever's axis (s(t) a cubic),
 optionally off the guide line by a known offset h."""
@@ -11,9 +11,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from mechval.kinematics import (joint_gap, joint_gaps, point_motion, point_position, rotate, rotate_scalar,
+from mechval.model.kinematics import (joint_gap, joint_gaps, point_motion, point_position, rotate, rotate_scalar,
                                 slide_motion, slide_rate, turn)
-from mechval.mechanism import GROUND, Joint
+from mechval.model.mechanism import GROUND, Joint
 
 T = np.linspace(0.0, 2.0, 201)
 #: Lever: pivot O(t) = (0.2 + 0.1t², −0.1 + 0.3t), angle θ = 0.3 + 2t + 0.7t².

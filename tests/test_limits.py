@@ -18,7 +18,7 @@ from fake_engines import registered
 from mechval.harness import cli
 from mechval.engines import registry
 from mechval.harness.run_limits import Limits, check_run, run_size
-from mechval.scenario import ScenarioError
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import builtin_path, kinds, load, parse
 from mechval.harness.simulate import simulate
 from mechval.testing.scenes import fourbar, slider_crank
@@ -108,7 +108,7 @@ def test_the_distant_centre_of_mass_bound_is_where_the_reference_breaks(monkeypa
     four-bar, its closure tolerance scaled by a size the centre of mass
     sets (from an approximate pose, as a file gives it: the closed form's
     angles at t = 0 rounded to 0.01 rad)."""
-    from mechval import limits
+    from mechval.reference import limits
     doc = twin_document("fourbar-seed")
     doc["time"].update(end=1.0, samples=101)
     doc["assembly"] = {body: round(theta, 2) for body, theta in doc["assembly"].items()}
@@ -143,7 +143,7 @@ def test_huge_keys_and_values_are_not_echoed_in_full():
 
 
 def test_one_line():
-    from mechval.scenario import one_line
+    from mechval.model.scenario import one_line
     assert one_line("a|b\nc\x00é") == "a|b\\nc\\x00é"
     assert one_line("x" * 100, 10) == "x" * 9 + "…"
 
@@ -287,7 +287,7 @@ def test_output_checked_before_engine_work(fakes, no_engine_work, tmp_path, caps
 
 def test_output_files_follow_the_umask(tmp_path):
     from mechval.harness.baseline import save
-    from mechval.signals import write_folder_atomically
+    from mechval.records.signals import write_folder_atomically
     signals = simulate(parse(slider_crank(time={"end": 0.1, "samples": 11}), "x.toml"), "reference")
     previous = os.umask(0o022)
     try:

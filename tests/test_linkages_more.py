@@ -9,19 +9,19 @@ import numpy as np
 import pytest
 
 from conftest import builtin_scenario
-from mechval.analysis import analyse
-from mechval.loop import measured_stroke_ratio
-from mechval.linkages import build_mechanism
-from mechval.kinematics import joint_gap
-from mechval.mechanism import GROUND
-from mechval.reference import raw_reference
+from mechval.reference.analysis import analyse
+from mechval.reference.closed_forms.loop import measured_stroke_ratio
+from mechval.reference.linkages import build_mechanism
+from mechval.model.kinematics import joint_gap
+from mechval.model.mechanism import GROUND
+from mechval.reference.adapter import raw_reference
 from mechval.harness.simulate import simulate
-from mechval.scenario import ScenarioError
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import parse
-from mechval.signals import SIGNAL_CLASS, signal_names, with_slide_columns
+from mechval.records.signals import SIGNAL_CLASS, signal_names, with_slide_columns
 from scales import class_peaks, motion_scales
 from mechval.testing.scenes import merge
-from mechval.health import power_balance
+from mechval.judging.health import power_balance
 
 
 def slotted_lever(**overrides) -> dict:

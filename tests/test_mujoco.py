@@ -11,12 +11,12 @@ import pytest
 
 from mechval.testing.contract import AdapterContract
 from conftest import BUILTIN, builtin_reference, builtin_scenario, engine_or_skip
-from mechval.compare import compare, passed
+from mechval.judging.compare import compare, passed
 from mechval.testing import assert_within_tolerance, discrepancy_table
-from mechval.drive import DriveLaw
-from mechval.linkages import build_mechanism
-from mechval.mechanism import GROUND, Body, Drive, Joint, Mechanism
-from mechval.newton_euler import reactions
+from mechval.model.drive import DriveLaw
+from mechval.reference.linkages import build_mechanism
+from mechval.model.mechanism import GROUND, Body, Drive, Joint, Mechanism
+from mechval.reference.newton_euler import reactions
 from mechval.scenarios import parse
 from scales import motion_scales
 from mechval.testing.scenes import fourbar, slider_crank
@@ -31,8 +31,8 @@ except ImportError as exc:
     pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"mujoco cannot be imported ({exc})")]
 else:
     pytestmark = pytest.mark.engine     # every test here runs MuJoCo
-    from mechval.engines.mujoco import MujocoAdapter
-    from mechval.engines.mujoco_run import Model
+    from mechval.engines.mujoco.adapter import MujocoAdapter
+    from mechval.engines.mujoco.run import Model
 
 FORCE_CLASSES = ("force", "torque")
 #: Inverse mode evaluates the same equations as the reference at the same
@@ -251,9 +251,9 @@ def test_read_out_is_the_native_data(engine, name, monkeypatch):
     (across its blocks: 2 samples per block here), and the cut force and
     drive torque it reads from efc_force and qfrc_constraint are the
     equalities' efc_force rows bit for bit."""
-    from mechval.engines import mujoco_snapshot
-    from mechval.engines.mujoco_run import FULL, RECORDED
-    from mechval.engines.mujoco_snapshot import Snapshot
+    from mechval.engines.mujoco import snapshot as mujoco_snapshot
+    from mechval.engines.mujoco.run import FULL, RECORDED
+    from mechval.engines.mujoco.snapshot import Snapshot
     monkeypatch.setattr(mujoco_snapshot, "CHUNK", 2)
     model, _ = built_model(engine, builtin_scenario(name))
     m, d = model.m, model.d
@@ -278,7 +278,7 @@ def test_read_out_is_the_native_data(engine, name, monkeypatch):
 
 
 def test_snapshot_refuses_fields_outside_the_data_buffer(engine):
-    from mechval.engines.mujoco_snapshot import Snapshot
+    from mechval.engines.mujoco.snapshot import Snapshot
     model, _ = built_model(engine, builtin_scenario("slider-crank"))
     mujoco.mj_forward(model.m, model.d)
     with pytest.raises(ValueError, match="one mjData buffer"):
@@ -304,7 +304,7 @@ def test_overlapping_runs_share_the_warning_silencer(engine):
     """Threads running at once (a Dask worker with several threads) install
     the handler once and restore MuJoCo's default only when the last
     leaves, whatever the order."""
-    from mechval.engines.mujoco_run import warnings_silenced
+    from mechval.engines.mujoco.run import warnings_silenced
     first, second = warnings_silenced, warnings_silenced
     first.__enter__()
     second.__enter__()
@@ -389,7 +389,7 @@ def test_point_mass_turning_with_its_lever_borrows_inertia(engine):
     """The point-mass block (izz = 0) gets MIN_IZZ, taken from the lever it
     turns with (their total, which the motion depends on, is kept); a
     slider that never turns keeps its stand-in mass·(1 m)²."""
-    from mechval.engines.mujoco_model import MIN_IZZ, inertia_shift, planar_inertias
+    from mechval.engines.mujoco.model import MIN_IZZ, inertia_shift, planar_inertias
     mech = build_mechanism(scene_with_block(0.5))
     izz = planar_inertias(mech)
     lever = mech.body("lever").izz
@@ -422,7 +422,7 @@ def test_masses_mujoco_cannot_hold_are_refused_with_the_key(engine, monkeypatch)
 
     from mechval.engines.base import Unrepresentable
     from mechval.harness import plan as harness_plan
-    from mechval.scenario import ScenarioError
+    from mechval.model.scenario import ScenarioError
     scenario = builtin_scenario("slider-crank")
     mech = build_mechanism(scenario)
     light = dataclasses.replace(mech, bodies=tuple(dataclasses.replace(b, mass=1e-300) if b.name == "crank" else b

@@ -16,10 +16,10 @@ import pytest
 import andrews as A
 import dynamic_mechanisms as dm
 from mechval.testing.contract import ANGLE, dynamic_errors
-from mechval.audit import audit, expected_model, failures, format_audit
-from mechval.dynamics import raw_dynamics
-from mechval.mechanism import TorqueLaw
-from mechval.scenario import ScenarioError
+from mechval.records.audit import audit, expected_model, failures, format_audit
+from mechval.reference.dynamics import raw_dynamics
+from mechval.model.mechanism import TorqueLaw
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import parse
 from mechval.testing.scenes import fourbar
 
@@ -29,9 +29,9 @@ except ImportError as exc:
     pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"mujoco cannot be imported ({exc})")]
 else:
     pytestmark = pytest.mark.engine
-    from mechval.engines.mujoco import MujocoAdapter
-    from mechval.engines.mujoco_audit import Reader
-    from mechval.engines.mujoco_run import Model
+    from mechval.engines.mujoco.adapter import MujocoAdapter
+    from mechval.engines.mujoco.audit import Reader
+    from mechval.engines.mujoco.run import Model
 
 #: Inverse mode evaluates the equations of motion at the reference's own
 #: state: only rounding separates them (measured ≤ 9e-13 rad, 6e-15 of each

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import pytest
 
-from mechval.audit import failures, format_audit
-from mechval.compare import compare
+from mechval.records.audit import failures, format_audit
+from mechval.judging.compare import compare
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from planar_contract import PlanarContract
 from planar_scenes import SCENES, scene
 
@@ -49,10 +49,10 @@ def test_inverse_mode_reproduces_the_reference(name):
 def test_the_audit_reads_the_new_elements_back(name, element, quantity):
     """A changed value in the compiled model (not in the Mechanism) shows
     as "differs" in that element's row: the audit reads MuJoCo's numbers."""
-    from mechval.audit import audit, expected_model
-    from mechval.engines.mujoco import MujocoAdapter
-    from mechval.engines.mujoco_run import Model
-    from mechval.engines.mujoco_audit import Reader
+    from mechval.records.audit import audit, expected_model
+    from mechval.engines.mujoco.adapter import MujocoAdapter
+    from mechval.engines.mujoco.run import Model
+    from mechval.engines.mujoco.audit import Reader
     scenario = scene(name)
     mechanism = build_mechanism(scenario)
     model = Model(mechanism, scenario.time.t, MujocoAdapter().settings_for(scenario, mechanism))
@@ -81,8 +81,8 @@ def test_declares_every_feature_and_the_harness_still_refuses_undeclared_ones():
     would still be refused each, naming the key (the refusal is the
     harness's, not the adapter's)."""
     from mechval.adapter import FEATURES
-    from mechval.engines.mujoco import MujocoAdapter
-    from mechval.scenario import ScenarioError
+    from mechval.engines.mujoco.adapter import MujocoAdapter
+    from mechval.model.scenario import ScenarioError
     assert MujocoAdapter.features == frozenset(FEATURES)
 
     class Undeclared(MujocoAdapter):

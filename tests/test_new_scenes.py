@@ -15,11 +15,11 @@ import pytest
 
 import andrews as A
 from conftest import CANNOT_RUN, ENGINES, builtin_scenario, engine_or_skip
-from mechval.compare import compare
+from mechval.judging.compare import compare
 from mechval.harness.simulate import simulate
-from mechval.health import joint_gaps
-from mechval.linkages import build_mechanism
-from mechval.planar_solver import raw_planar
+from mechval.judging.health import joint_gaps
+from mechval.reference.linkages import build_mechanism
+from mechval.reference.planar.solver import raw_planar
 from mechval.scenarios import builtin_names
 from scales import size
 from test_planar_solver import BOUND, power_terms

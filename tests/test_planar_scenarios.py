@@ -18,15 +18,15 @@ import pytest
 
 from conftest import CLOSED_FORM, builtin_scenario
 from mechval.adapter import mechanism_features
-from mechval.analysis import analyse, format_analysis
+from mechval.reference.analysis import analyse, format_analysis
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism, without_closed_form
-from mechval.kinematics import point_motion
-from mechval.planar_solver import raw_planar
-from mechval.reference import raw_reference
-from mechval.scenario import ScenarioError
+from mechval.reference.linkages import build_mechanism, without_closed_form
+from mechval.model.kinematics import point_motion
+from mechval.reference.planar.solver import raw_planar
+from mechval.reference.adapter import raw_reference
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import load, parse
-from mechval.signals import SIGNAL_CLASS
+from mechval.records.signals import SIGNAL_CLASS
 from scales import motion_scales, size
 from test_planar_solver import BOUND, column_scales, worst
 from twins import twin_document, twin_text
@@ -230,8 +230,8 @@ def test_analyse_refuses_an_instant_its_denser_grid_cannot_solve(monkeypatch):
     """`analyse` solves at ≥ 2001 instants, more than the file's samples: an
     instant refused there is one line naming the file, the key and the
     time (it was a traceback)."""
-    import mechval.planar_analysis as planar_analysis
-    from mechval.planar_constraints import MechanismError
+    import mechval.reference.planar.analysis as planar_analysis
+    from mechval.reference.planar.constraints import MechanismError
 
     def refuses(mech, t):
         raise MechanismError("time", "the loop cannot close at t = 0.4955 s")

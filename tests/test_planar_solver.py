@@ -1,4 +1,4 @@
-"""The general planar reference (mechval.planar_solver) against what it
+"""The general planar reference (mechval.reference.planar.solver) against what it
 must reproduce:
 
 - the four closed-form kinds, on every built-in scenario, to 1e-12;
@@ -24,15 +24,15 @@ import pytest
 import andrews as A
 import planar_mechanisms as pm
 from conftest import CLOSED_FORM, builtin_scenario
-from mechval.drive import DriveLaw
-from mechval.fourbar import position as fourbar_position
-from mechval.health import joint_gaps, slide_rate
-from mechval.linkages import build_mechanism
-from mechval.kinematics import point_motion
-from mechval.mechanism import GROUND, BodyPose, BodyTorque, Drive, Joint, SpringDamper
-import mechval.planar_positions as positions
-from mechval.planar_solver import MechanismError, PlanarSolver, raw_planar
-from mechval.reference import raw_reference
+from mechval.model.drive import DriveLaw
+from mechval.reference.closed_forms.fourbar import position as fourbar_position
+from mechval.judging.health import joint_gaps, slide_rate
+from mechval.reference.linkages import build_mechanism
+from mechval.model.kinematics import point_motion
+from mechval.model.mechanism import GROUND, BodyPose, BodyTorque, Drive, Joint, SpringDamper
+import mechval.reference.planar.positions as positions
+from mechval.reference.planar.solver import MechanismError, PlanarSolver, raw_planar
+from mechval.reference.adapter import raw_reference
 from scales import motion_scales, size
 from twins import twin
 
@@ -225,7 +225,7 @@ def test_finite_differences(name):
 
 @pytest.mark.parametrize("name", sorted(SELF_CHECKED))
 def test_loop_closure(name):
-    """Every joint closes (mechval.health's gap: pin separation, distance
+    """Every joint closes (mechval.judging.health's gap: pin separation, distance
     off a slide's line) to 1e-12 of the mechanism's size."""
     mech = SELF_CHECKED[name]()
     raw = raw_planar(mech, np.linspace(0.0, 1.0, 401)).frame
@@ -452,7 +452,7 @@ def test_the_fourbar_closure_limit_matches_the_closed_form():
     joints = tuple(dataclasses.replace(j, point_j=(b, 0.0)) if j.name == "B" else j for j in seed.joints)
     law = DriveLaw(0.0, 1.0, 0.0)
     mech = dataclasses.replace(seed, joints=joints, drive=Drive("O2", law))
-    from mechval.fourbar import FourBarGeometry
+    from mechval.reference.closed_forms.fourbar import FourBarGeometry
     g = FourBarGeometry(ground=d, crank=a, coupler=b, rocker=c)
     start = fourbar_position(g, np.array([0.0]))
     pose = {"crank": BodyPose(0.0), "coupler": BodyPose(float(start["theta3"][0])),
@@ -475,7 +475,7 @@ def test_tree_elimination_solves_like_a_dense_solve(name):
     solves with the whole Jacobian (least squares where rows are
     redundant), at arbitrary configurations (the elimination is exact
     algebra: it does not need the joints closed)."""
-    from mechval.planar_solver import PlanarSolver
+    from mechval.reference.planar.solver import PlanarSolver
     solver = PlanarSolver(ELIMINATED[name]())
     c = solver.c
     rng = np.random.default_rng(7)
@@ -498,7 +498,7 @@ def matmul_rows(A: np.ndarray, x: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("size", [1, 2, 3, 4])
 def test_small_inverses(size):
     """The stacked inverses, instants on the last axis (k, k, instants)."""
-    from mechval.planar_linear import inverse
+    from mechval.reference.planar.linear import inverse
     rng = np.random.default_rng(size)
     A = rng.normal(size=(200, size, size)) + 2 * np.eye(size)
     inverses = inverse(np.ascontiguousarray(A.transpose(1, 2, 0))).transpose(2, 0, 1)
@@ -510,7 +510,7 @@ def test_small_inverses(size):
 def test_stacked_products_and_norms(shape):
     """matvec and norm_inf per instant, instants last, against numpy's
     per-matrix results."""
-    from mechval.planar_linear import matvec, norm_inf
+    from mechval.reference.planar.linear import matvec, norm_inf
     rng = np.random.default_rng(sum(shape))
     A, x = rng.normal(size=(50,) + shape), rng.normal(size=(50, shape[1]))
     products = matvec(A.transpose(1, 2, 0), x.T).T

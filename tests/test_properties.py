@@ -10,11 +10,11 @@ import numpy as np
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from mechval.health import power_balance
-from mechval.kinematics import joint_gaps
-from mechval.linkages import build_mechanism
-from mechval.reference import raw_reference
-from mechval.scenario import ScenarioError
+from mechval.judging.health import power_balance
+from mechval.model.kinematics import joint_gaps
+from mechval.reference.linkages import build_mechanism
+from mechval.reference.adapter import raw_reference
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import parse
 from scales import size
 from mechval.testing.scenes import fourbar, slider_crank

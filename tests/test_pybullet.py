@@ -17,15 +17,15 @@ import dynamic_mechanisms as dm
 from mechval.testing.contract import MOVING_SLIDE, AdapterContract, dynamic_errors
 from conftest import engine_or_skip
 from mechval.adapter import Unrepresentable
-from mechval.audit import failures, format_audit, torque_law_item
-from mechval.dynamics import raw_dynamics
-from mechval.mechanism import InitialValue, TorqueLaw
-from mechval.planar_solver import default_pose
-from mechval.compare import compare
+from mechval.records.audit import failures, format_audit, torque_law_item
+from mechval.reference.dynamics import raw_dynamics
+from mechval.model.mechanism import InitialValue, TorqueLaw
+from mechval.reference.planar.solver import default_pose
+from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance
-from mechval.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import parse
-from mechval.signals import canonical_signals
+from mechval.records.signals import canonical_signals
 from mechval.testing.scenes import fourbar, slider_crank
 from test_linkages_more import VARIANTS as SLIDE_VARIANTS
 
@@ -39,8 +39,8 @@ except ImportError as exc:
     pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"pybullet cannot be imported ({exc})")]
 else:
     pytestmark = pytest.mark.engine     # every test here runs PyBullet
-    from mechval.engines.pybullet_run import run_model
-    from mechval.engines.pybullet_model import NO_CAP, build
+    from mechval.engines.pybullet.run import run_model
+    from mechval.engines.pybullet.model import NO_CAP, build
 
 #: Forces and torque of the short seed at the default setting (measured
 #: 3.9e-5); a re-armed default must make them clearly worse than this.
@@ -330,7 +330,7 @@ def test_scenario_table_overrides_settings(adapter):
 #: The half-driven five-bar's start-up transient at its first sample (t0),
 #: relative to each reaction's peak: the first step's loop forces, which
 #: do not shrink with the step (docs/engines.md). Measured after the
-#: start's rate correction (pybullet_run.steady_start): drive.T 7.6e-2,
+#: start's rate correction (pybullet.run.steady_start): drive.T 7.6e-2,
 #: A.Fx and O1.Fx 4.0e-2 at both the default step and a quarter of it
 #: (before it: drive.T 0.24). Every later sample meets the default bounds.
 HALF_DRIVEN_START_TRANSIENT = 0.1
@@ -373,7 +373,7 @@ def test_the_audit_shows_a_motor_left_on_a_free_joint(adapter, monkeypatch):
     """A position motor on the half-driven five-bar's free crank (O4), as
     the build would leave it if it treated every ground joint as driven:
     the audit's motors row names it."""
-    from mechval.engines import pybullet_audit
+    from mechval.engines.pybullet import audit as pybullet_audit
     build = pybullet_audit.build
 
     def motored(mechanism, *args):

@@ -5,8 +5,8 @@ a link below another (a five-bar driven at a pin between moving links, a
 Scotch yoke) and which reactions it then derives; what it still cannot
 build, refused naming the key.
 
-How PyBullet builds each feature (engines/pybullet_run.py, pybullet_model.py,
-pybullet_layout.py): every drive is a position-controlled multibody joint,
+How PyBullet builds each feature (engines/pybullet/run.py, model.py,
+layout.py): every drive is a position-controlled multibody joint,
 its effort read from the joint's applied motor torque or force;
 spring-dampers and body torques are external loads set before every step
 (PyBullet has no spring element between bodies)."""
@@ -16,7 +16,7 @@ from __future__ import annotations
 import pytest
 
 from mechval.harness.simulate import simulate
-from mechval.linkages import build_mechanism
+from mechval.reference.linkages import build_mechanism
 from planar_contract import PlanarContract
 from planar_scenes import scene
 
@@ -28,7 +28,7 @@ class TestPlanarContract(PlanarContract):
 
 
 def layout_of(name: str):
-    from mechval.engines.pybullet_layout import plan_layout
+    from mechval.engines.pybullet.layout import plan_layout
     layout = plan_layout(build_mechanism(scene(name)), "split")
     links = {root: [(joint.name, parent, child) for joint, parent, child in links]
              for root, links in layout.multibodies.items()}

@@ -55,7 +55,7 @@ samples = 51
 FAKE_TESTS = '''
 import pytest
 from mechval.adapter import EngineAdapter, RawRun
-from mechval.reference import raw_reference
+from mechval.reference.adapter import raw_reference
 
 
 class Faithful(EngineAdapter):

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from conftest import CLOSED_FORM, builtin_scenario
-from mechval.health import power_balance
-from mechval.kinematics import joint_gaps, point_motion
-from mechval.linkages import build_mechanism
-from mechval.reference import raw_reference
+from mechval.judging.health import power_balance
+from mechval.model.kinematics import joint_gaps, point_motion
+from mechval.reference.linkages import build_mechanism
+from mechval.reference.adapter import raw_reference
 from mechval.harness.simulate import simulate
-from mechval.newton_euler import assemble, reaction_values
+from mechval.reference.newton_euler import assemble, reaction_values
 from mechval.scenarios import parse
-from mechval.signals import SIGNAL_CLASS
+from mechval.records.signals import SIGNAL_CLASS
 from norton import UNKNOWNS, norton_system
 from scales import class_peaks, motion_scales, size
 from mechval.testing.scenes import fourbar, slider_crank

@@ -16,12 +16,12 @@ import pytest
 from conftest import ENGINES
 from mechval.engines import registry
 
-MUJOCO = "mechval.engines.mujoco:MujocoAdapter"
+MUJOCO = "mechval.engines.mujoco.adapter:MujocoAdapter"
 
 TINY_ADAPTER = '''
 """A third-party engine adapter, installed as its own distribution."""
 from mechval.engines.base import EngineAdapter, RawRun
-from mechval.reference import raw_reference
+from mechval.reference.adapter import raw_reference
 
 
 class TinyAdapter(EngineAdapter):
@@ -116,8 +116,8 @@ def test_the_builtins_are_mechvals_own_entry_points(monkeypatch):
     `mechval.engines` entry points are the built-ins, first, and with no
     entry point found there is no engine but the reference."""
     own = [e for e in importlib.metadata.distribution("mechval").entry_points if e.group == registry.ENTRY_POINT_GROUP]
-    assert {e.name: e.value for e in own} == {"mujoco": MUJOCO, "pybullet": "mechval.engines.pybullet:PybulletAdapter",
-                                             "exudyn": "mechval.engines.exudyn:ExudynAdapter"}
+    assert {e.name: e.value for e in own} == {"mujoco": MUJOCO, "pybullet": "mechval.engines.pybullet.adapter:PybulletAdapter",
+                                             "exudyn": "mechval.engines.exudyn.adapter:ExudynAdapter"}
     assert registry.engine_names()[:len(ENGINES)] == ENGINES == tuple(e.name for e in own)
     monkeypatch.setattr(importlib.metadata, "entry_points", lambda **_: [])
     registry.targets.cache_clear()

@@ -21,11 +21,11 @@ import page_codes
 from fake_engines import FAKES, registered
 from mechval.engines import registry
 from mechval.harness.simulate import simulate
-from mechval.outcome import Outcome, Task
+from mechval.records.outcome import Outcome, Task
 from mechval.reports import build, plots
 from mechval.harness.runner import discrepancies, run_tasks, tasks_for
 from mechval.scenarios import parse
-from mechval.signals import Signals
+from mechval.records.signals import Signals
 from mechval.testing.scenes import slider_crank
 
 HOSTILE = ('Slider <b>bold</b> & <script>document.title="pwned"</script> "quoted" '

@@ -14,15 +14,15 @@ import pytest
 import dynamic_mechanisms as dm
 import page_codes
 from fake_engines import registered
-from mechval.compare import COLUMNS
-from mechval.dynamics import RTOL
+from mechval.judging.compare import COLUMNS
+from mechval.reference.dynamics import RTOL
 from mechval.engines import registry
 from mechval.harness.runner import discrepancies, references_for, run_tasks, tasks_for
-from mechval.health import health
-from mechval.reference import ReferenceAdapter
+from mechval.judging.health import health
+from mechval.reference.adapter import ReferenceAdapter
 from mechval.reports import build, plots
 from mechval.scenarios import parse
-from mechval.signals import Signals
+from mechval.records.signals import Signals
 from mechval.testing.scenes import slider_crank
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

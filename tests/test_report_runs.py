@@ -12,13 +12,13 @@ import pytest
 
 from mechval.adapter import RunInfo
 from mechval.harness.runner import discrepancies
-from mechval.outcome import Outcome, Task
+from mechval.records.outcome import Outcome, Task
 from mechval.harness.simulate import simulate
 from mechval.reports import build, runs
 from mechval.scenarios import parse
 from mechval.testing.scenes import slider_crank
 
-#: Settings as an adapter hands them over (engines/exudyn.py's keys): an
+#: Settings as an adapter hands them over (engines/exudyn/adapter.py's keys): an
 #: unrounded step (1/46000 s) and a force-scaled tolerance.
 STEP = 1 / 46000
 SETTINGS = {"solver": "index2", "timestep": STEP, "pre_roll_steps": 10, "spectral_radius": 0.9,

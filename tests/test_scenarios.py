@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import BUILTIN, ENGINES
-from mechval.scenario import ScenarioError
+from mechval.model.scenario import ScenarioError
 from mechval.scenarios import load, parse
 from mechval.testing.scenes import fourbar, slider_crank
 from twins import twin_document

@@ -1,4 +1,4 @@
-"""Figures: how closely the forward-dynamics reference (mechval.dynamics)
+"""Figures: how closely the forward-dynamics reference (mechval.reference.dynamics)
 meets its checks, as tests/test_dynamics.py scales them: the closed forms
 (pendulum, crank under a torque law), and per test mechanism the energy
 balance residual, the constraint drift and the change when the tolerance
@@ -30,11 +30,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 import dynamic_mechanisms as dm  # noqa: E402
-from mechval import dynamics  # noqa: E402
-from mechval.dynamics import RTOL  # noqa: E402
+from mechval.reference import dynamics  # noqa: E402
+from mechval.reference.dynamics import RTOL  # noqa: E402
 from mechval.scenarios import load  # noqa: E402
-from mechval.health import joint_gaps  # noqa: E402
-from mechval.planar_positions import mechanism_size as size  # noqa: E402
+from mechval.judging.health import joint_gaps  # noqa: E402
+from mechval.reference.planar.positions import mechanism_size as size  # noqa: E402
 from test_dynamics import SPANS, energy_residual, motion_scales, solved  # noqa: E402
 from test_dynamics_accuracy import BOUND, TIGHTEST, class_errors, signals, spun_fourbar  # noqa: E402
 

@@ -1,4 +1,4 @@
-"""Benchmark: the forward-dynamics reference (mechval.dynamics) on Andrews'
+"""Benchmark: the forward-dynamics reference (mechval.reference.dynamics) on Andrews'
 squeezing mechanism over 0–0.03 s at the default rtol (wall time, steps,
 evaluations, and each published coordinate's error at 0.03 s), and the
 seed four-bar released from rest under gravity, falling for 10 s (wall
@@ -7,7 +7,7 @@ torque-driven and free scene files through the reference adapter (the
 path `mechval run` takes; fourbar-falling stretched to the same 10 s):
 wall time, steps, evaluations and time per evaluation; and the seed
 four-bar spun over 15 turns by two torque laws (tests/test_dynamics_accuracy.py),
-its share of the evaluation limit (mechval.dynamics.MAX_EVALUATIONS).
+its share of the evaluation limit (mechval.reference.dynamics.MAX_EVALUATIONS).
 
     .venv/bin/python tests/bench/dynamics_bench.py [--method DOP853|Radau] [--rtol R] [--repeats N]
                                                    [--fall SECONDS] [--samples N]
@@ -28,11 +28,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 import andrews as A  # noqa: E402
 import dynamic_mechanisms as dm  # noqa: E402
-from mechval import dynamics  # noqa: E402
-from mechval.dynamics import MAX_EVALUATIONS, METHODS, RTOL, raw_dynamics  # noqa: E402
-from mechval.energy import kinetic_energy, potential_energy  # noqa: E402
-from mechval.health import joint_gaps  # noqa: E402
-from mechval.planar_positions import mechanism_size as size  # noqa: E402
+from mechval.reference import dynamics  # noqa: E402
+from mechval.reference.dynamics import MAX_EVALUATIONS, METHODS, RTOL, raw_dynamics  # noqa: E402
+from mechval.judging.energy import kinetic_energy, potential_energy  # noqa: E402
+from mechval.judging.health import joint_gaps  # noqa: E402
+from mechval.reference.planar.positions import mechanism_size as size  # noqa: E402
 
 NAMES = ("β", "Θ", "γ", "Φ", "δ", "Ω", "ε")
 
@@ -107,8 +107,8 @@ def scenes(args) -> None:
 def best_reference_run(scenario, repeats: int) -> tuple[float, dict]:
     """The reference adapter's best wall time on the scenario over
     `repeats` runs (the run cache cleared before each), and its facts."""
-    from mechval.linkages import build_mechanism
-    from mechval.reference import ReferenceAdapter
+    from mechval.reference.linkages import build_mechanism
+    from mechval.reference.adapter import ReferenceAdapter
     mech, best, facts = build_mechanism(scenario), np.inf, {}
     for _ in range(repeats):
         dynamics._runs.clear()

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import time
 
-from mechval.engines.exudyn import ExudynAdapter
-from mechval.engines.exudyn_run import prepare
-from mechval.engines.exudyn_model import SOLVERS
-from mechval.linkages import build_mechanism
+from mechval.engines.exudyn.adapter import ExudynAdapter
+from mechval.engines.exudyn.run import prepare
+from mechval.engines.exudyn.model import SOLVERS
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import load
 from mechval.harness.simulate import simulate
 from timing import best_times, scenario_arguments

@@ -36,8 +36,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 import andrews as A
 import dynamic_mechanisms as dm
 from mechval.testing.contract import ANGLE, FORCE, dynamic_errors
-from mechval.dynamics import RTOL, raw_dynamics
-from mechval.energy import kinetic_energy, potential_energy
+from mechval.reference.dynamics import RTOL, raw_dynamics
+from mechval.judging.energy import kinetic_energy, potential_energy
 from mechval.engines.registry import adapter
 
 #: How long each case runs (s): the contract's, the five-bars 1 s, Andrews' 0.03 s.

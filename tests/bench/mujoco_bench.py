@@ -21,9 +21,9 @@ import time
 import numpy as np
 from mujoco import rollout
 
-from mechval.engines.mujoco import MujocoAdapter
-from mechval.engines.mujoco_run import Model
-from mechval.linkages import build_mechanism
+from mechval.engines.mujoco.adapter import MujocoAdapter
+from mechval.engines.mujoco.run import Model
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import load
 from timing import interleaved_times, scenario_arguments, timed
 

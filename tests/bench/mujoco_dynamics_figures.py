@@ -1,5 +1,5 @@
 """Figures: MuJoCo on torque-driven and free mechanisms (issue 15), against
-the forward-dynamics reference (mechval.dynamics, DOP853 at its RTOL) from
+the forward-dynamics reference (mechval.reference.dynamics, DOP853 at its RTOL) from
 the same initial state. Asserts nothing; docs/engines.md quotes them.
 
 - per case of tests/dynamic_mechanisms.py at MuJoCo's default setting: the
@@ -32,9 +32,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 import andrews as A  # noqa: E402
 import dynamic_mechanisms as dm  # noqa: E402
 from mechval.testing.contract import ANGLE, dynamic_errors  # noqa: E402
-from mechval.dynamics import raw_dynamics  # noqa: E402
-from mechval.energy import kinetic_energy, potential_energy  # noqa: E402
-from mechval.engines.mujoco import MujocoAdapter  # noqa: E402
+from mechval.reference.dynamics import raw_dynamics  # noqa: E402
+from mechval.judging.energy import kinetic_energy, potential_energy  # noqa: E402
+from mechval.engines.mujoco.adapter import MujocoAdapter  # noqa: E402
 from test_dynamics import SPANS  # noqa: E402
 
 SAMPLES = 101

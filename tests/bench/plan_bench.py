@@ -45,7 +45,7 @@ for package, folder in list(finder.MAPPING.items()):
 #: its engine workers too (in this process, each task a pickled copy).
 COUNT = """
 import pickle, json
-from mechval import planar_solver
+from mechval.reference.planar import solver as planar_solver
 from mechval.harness import cli, runner
 from mechval.harness.executors import Done
 seen = []
@@ -69,7 +69,7 @@ print("SOLVES " + json.dumps(seen))
 PROFILE = """
 import cProfile, pstats, json
 from mechval.harness import cli
-import mechval.engines.mujoco, mujoco          # imports are not the command's work
+import mechval.engines.mujoco.adapter, mujoco          # imports are not the command's work
 profile = cProfile.Profile()
 profile.runcall(cli.main, {argv!r})
 stats = pstats.Stats(profile).stats

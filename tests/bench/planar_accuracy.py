@@ -19,9 +19,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 import andrews as A  # noqa: E402
-from mechval.linkages import build_mechanism  # noqa: E402
-from mechval.planar_solver import raw_planar  # noqa: E402
-from mechval.reference import raw_reference  # noqa: E402
+from mechval.reference.linkages import build_mechanism  # noqa: E402
+from mechval.reference.planar.solver import raw_planar  # noqa: E402
+from mechval.reference.adapter import raw_reference  # noqa: E402
 from mechval.scenarios import builtin_names, load  # noqa: E402
 from scales import motion_scales, size  # noqa: E402
 from test_planar_solver import column_scales, lambdas, perturbed_pose, worst  # noqa: E402

@@ -8,7 +8,7 @@ squeezing mechanism at 10⁵ instants (goal: under 2 s).
 Prints the figures, best of R interleaved rounds, and the load average
 (the closed form's own time varies by up to half between quiet runs of
 this machine, so the ratio does too); with --chunks, the general solve's
-time per batch size 2^k (`mechval.planar_solver.CHUNK`). It asserts
+time per batch size 2^k (`mechval.reference.planar.solver.CHUNK`). It asserts
 nothing about time (a benchmark, not a test).
 """
 
@@ -23,11 +23,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
-import mechval.planar_solver as planar_solver  # noqa: E402
+import mechval.reference.planar.solver as planar_solver  # noqa: E402
 from andrews import andrews_mechanism  # noqa: E402
-from mechval.linkages import build_mechanism  # noqa: E402
-from mechval.planar_solver import raw_planar  # noqa: E402
-from mechval.reference import raw_reference  # noqa: E402
+from mechval.reference.linkages import build_mechanism  # noqa: E402
+from mechval.reference.planar.solver import raw_planar  # noqa: E402
+from mechval.reference.adapter import raw_reference  # noqa: E402
 from mechval.scenarios import load  # noqa: E402
 from timing import best_times, timed  # noqa: E402
 

@@ -17,7 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from test_engines import POINT_MASS_SCENES  # noqa: E402
 
-from mechval.compare import compare  # noqa: E402
+from mechval.judging.compare import compare  # noqa: E402
 from mechval.engines.registry import EngineUnavailable, adapter, engine_names  # noqa: E402
 from mechval.scenarios import parse  # noqa: E402
 from mechval.harness.simulate import simulate

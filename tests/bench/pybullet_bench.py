@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from mechval.engines.pybullet import PybulletAdapter
-from mechval.engines.pybullet_model import NO_CAP, build, p
-from mechval.linkages import build_mechanism
+from mechval.engines.pybullet.adapter import PybulletAdapter
+from mechval.engines.pybullet.model import NO_CAP, build, p
+from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import load
 from mechval.harness.simulate import simulate
 from timing import best_times, scenario_arguments

@@ -1,6 +1,6 @@
 """Figures: PyBullet on torque-driven and free mechanisms (issue 15), at
 its default setting, against the forward-dynamics reference
-(`mechval.dynamics`, DOP853 at its RTOL).
+(`mechval.reference.dynamics`, DOP853 at its RTOL).
 
     .venv/bin/python tests/bench/pybullet_dynamics_figures.py [--no-energy] [--no-andrews] [CASE ...]
 
@@ -12,7 +12,7 @@ its default setting, against the forward-dynamics reference
    peak; ≤ 1 passes). A reaction the reference leaves indeterminate
    (the redundant parallelogram's pins) has no peak and is not compared.
 2. The free, undamped seed four-bar falling from rest for 10 s: energy
-   drift max |E(t) − E(0)| (kinetic + potential, `mechval.energy`) in J
+   drift max |E(t) − E(0)| (kinetic + potential, `mechval.judging.energy`) in J
    and relative to the peak kinetic energy, for PyBullet and the reference.
 3. Andrews' squeezer under its motor, 0–0.03 s: the work-precision line
    (the worst body-angle error over the whole run against wall time, for
@@ -37,8 +37,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import andrews as A  # noqa: E402
 import dynamic_mechanisms as dm  # noqa: E402
 from mechval.testing.contract import DYNAMIC, dynamic_errors  # noqa: E402
-from mechval.dynamics import raw_dynamics  # noqa: E402
-from mechval.energy import kinetic_energy, potential_energy  # noqa: E402
+from mechval.reference.dynamics import raw_dynamics  # noqa: E402
+from mechval.judging.energy import kinetic_energy, potential_energy  # noqa: E402
 from mechval.engines.registry import adapter  # noqa: E402
 
 #: The span (s) of each case, as mechval.testing.contract and tests/test_dynamics.py run them.

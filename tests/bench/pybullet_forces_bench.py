@@ -19,9 +19,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mechval.engines.pybullet import PybulletAdapter   # noqa: E402
-from mechval.engines.pybullet_run import run_model   # noqa: E402
-from mechval.linkages import build_mechanism                       # noqa: E402
+from mechval.engines.pybullet.adapter import PybulletAdapter   # noqa: E402
+from mechval.engines.pybullet.run import run_model   # noqa: E402
+from mechval.reference.linkages import build_mechanism                       # noqa: E402
 from planar_scenes import SCENES, scene                             # noqa: E402
 
 

@@ -19,10 +19,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mechval.compare import compare  # noqa: E402
-from mechval.engines import pybullet_run as adapter_module  # noqa: E402
+from mechval.judging.compare import compare  # noqa: E402
+from mechval.engines.pybullet import run as adapter_module  # noqa: E402
 from mechval.engines.registry import adapter  # noqa: E402
-from mechval.linkages import build_mechanism  # noqa: E402
+from mechval.reference.linkages import build_mechanism  # noqa: E402
 from mechval.harness.simulate import simulate
 from test_linkages_more import SCENES  # noqa: E402
 

@@ -18,9 +18,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
-from mechval.fourbar import kinematics  # noqa: E402
-from mechval.linkages import build_mechanism  # noqa: E402
-from mechval.reference import raw_reference  # noqa: E402
+from mechval.reference.closed_forms.fourbar import kinematics  # noqa: E402
+from mechval.reference.linkages import build_mechanism  # noqa: E402
+from mechval.reference.adapter import raw_reference  # noqa: E402
 from mechval.scenarios import load  # noqa: E402
 from norton import norton_system  # noqa: E402
 from timing import best_times, timed  # noqa: E402

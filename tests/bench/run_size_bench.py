@@ -21,8 +21,8 @@ DENSE = 300_001
 
 CHILD = r"""
 import dataclasses, json, resource, sys, time
-from mechval.drive import DriveLaw
-from mechval.scenario import TimeGrid
+from mechval.model.drive import DriveLaw
+from mechval.model.scenario import TimeGrid
 from mechval.scenarios import load
 from mechval.harness.simulate import simulate
 engine, end, samples = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])

@@ -1,0 +1,201 @@
+"""One comparison rule: engine signals against the reference, as data.
+
+`compare` returns one discrepancy record per signal (a pandas DataFrame):
+where the largest error happened, how large it is in absolute and relative
+terms, the bound it is judged by, their ratio and the verdict. pytest
+messages (`mechval.testing`), reports and baselines are all built from
+these records.
+
+The rule (reference in the expected position):
+- angle and position classes: max |engine − reference| ≤ tol (rad, m);
+- every other class: max |engine − reference| ≤ tol · peak, where peak is
+  max |reference| of that signal over the run. Signals cross zero, so the
+  bound is an absolute one scaled by the signal's own size. A reference
+  signal that is identically zero (e.g. α2 at constant crank speed) is
+  scaled by the largest peak of its class instead, since a relative error
+  of a zero signal means nothing.
+Values an engine marks as missing (with a reason) are left out of the
+error and counted; a signal with no value at all is "missing"; NaN or inf
+without a reason fails. A signal the reference itself reports missing
+(a reaction left statically indeterminate by redundant constraints) is
+"missing" with the reference's reason, whatever the engine reports.
+
+Error growth: besides the largest error, each record gives the largest
+error over the first and over the last quarter of the run and the growth
+exponent p of the error's running maximum, fitted as ∝ (t − t0)^p
+(`error_growth`): a bias gives p ≈ 0, an error that grows with time (a
+phase or frequency error, a drift) p ≈ 1 or more. They describe; they do
+not judge.
+
+Run health (mechval.judging.health) is judged in the same records, class "health":
+a loop-closure gap beyond the position tolerance or a drive error beyond
+the angle tolerance makes the positions meaningless; a constraint drift
+(gaps over the mechanism's size, prismatic angle errors) is an angle,
+held to the angle tolerance; a power residual and the energy balance are
+held to the torque tolerance (they mix the torques and the motion); the
+energy drift of a conservative scene to the velocity tolerance (its error
+comes from the rates: to first order a relative speed error ε changes the
+kinetic energy by 2ε); any unexplained non-finite value or assembly-branch
+flip fails outright. An energy balance whose work the samples are too
+coarse to integrate (its quadrature error above QUADRATURE_SHARE of the
+bound) is "missing", with the estimate.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from mechval.judging.health import NOT_APPLICABLE
+from mechval.model.scenario import Tolerance
+from mechval.records.signals import SIGNAL_CLASS, Signals
+
+#: Error growth columns (`error_growth`), after the original ones so that
+#: those keep their places in every CSV written before.
+GROWTH_COLUMNS = ["error_first_quarter", "error_last_quarter", "growth_exponent"]
+COLUMNS = ["scenario", "engine", "setting", "signal", "class", "max_error", "t_max", "rms_error",
+           "peak", "relative_error", "tolerance", "bound", "ratio", "verdict", "missing", "reason", *GROWTH_COLUMNS]
+
+
+#: A reference signal whose peak is at most this fraction of its class's
+#: largest peak is zero in theory, its values rounding (the general reference
+#: solves to 1e-12: a slider's vy on a level guide comes out near 1e-17): its
+#: relative bound is taken from the class's peak, as for an exact zero, so
+#: rounding never becomes a bound no engine can meet.
+ZERO_IN_THEORY = 1e-12
+
+
+def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario: str = "",
+            engine: str | None = None, setting: str = "default") -> pd.DataFrame:
+    """Discrepancy records of `result` against `reference` (same samples)."""
+    engine = engine or result.source
+    t = reference.t
+    if len(result.t) != len(t) or not np.allclose(result.t, t, rtol=0, atol=1e-12 * max(1.0, abs(t[-1]))):
+        raise ValueError(f"{engine}: sample instants differ from the reference's")
+    names = [c for c in reference.frame.columns if c != "t"]
+    class_peak: dict[str, float] = {}
+    for name in names:
+        if name in reference.missing:
+            continue
+        cls = SIGNAL_CLASS[name]
+        class_peak[cls] = max(class_peak.get(cls, 0.0), float(np.abs(reference[name]).max()))
+    rows = []
+    for name in names:
+        cls = SIGNAL_CLASS[name]
+        ref = reference[name]
+        peak = float(np.abs(ref).max())
+        if peak <= ZERO_IN_THEORY * class_peak.get(cls, 0.0):
+            peak = class_peak.get(cls, peak)
+        tol = tolerance[cls]
+        bound = tol * peak if tolerance.is_relative(cls) else tol
+        values = result[name] if name in result.frame else np.full(len(t), np.nan)
+        reason = result.missing.get(name, "" if name in result.frame else f"{engine} does not report {name}")
+        bad = ~np.isfinite(values)
+        row = dict(scenario=scenario, engine=engine, setting=setting, signal=name, **{"class": cls},
+                   peak=peak, tolerance=tol, bound=bound, missing=int(bad.sum()), reason=reason)
+        if name in reference.missing:
+            # The reference has no value to compare with (e.g. a reaction
+            # that redundant constraints leave statically indeterminate):
+            # whatever the engine reports is never judged.
+            row.update(peak=np.nan, bound=np.nan, max_error=np.nan, t_max=np.nan, rms_error=np.nan,
+                       relative_error=np.nan, ratio=np.nan, verdict="missing",
+                       reason=f"reference: {reference.missing[name]}")
+        elif bad.all():
+            row.update(max_error=np.nan, t_max=np.nan, rms_error=np.nan, relative_error=np.nan,
+                       ratio=np.nan, verdict="fail" if not reason else "missing",
+                       reason=reason or "no finite value")
+        elif bad.any() and not reason:
+            row.update(max_error=np.inf, t_max=float(t[bad][0]), rms_error=np.inf, relative_error=np.inf,
+                       ratio=np.inf, verdict="fail", reason="non-finite values without a stated reason")
+        else:
+            error = np.abs(values[~bad] - ref[~bad])
+            worst = int(np.argmax(error))
+            max_error = float(error[worst])
+            row.update(error_growth(t[~bad], error))
+            row.update(max_error=max_error, t_max=float(t[~bad][worst]),
+                       rms_error=float(np.sqrt(np.mean(error**2))),
+                       relative_error=max_error / peak if peak else np.nan,
+                       ratio=max_error / bound if bound else (0.0 if max_error == 0 else np.inf))
+            row["verdict"] = "pass" if row["ratio"] <= 1.0 else "fail"
+        rows.append(row)
+    if result.health is not None:
+        rows += _health_rows(result.health, tolerance, dict(scenario=scenario, engine=engine, setting=setting))
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def error_growth(t: np.ndarray, error: np.ndarray) -> dict[str, float]:
+    """How |error| grows over the run: its largest value over the first and
+    the last quarter of the time span, and the exponent p of a least-squares
+    fit log m(t) = p·log(t − t0) + c (numpy.polyfit) of its running maximum
+    m(t) = max |error| up to t, over the samples after t0 where m > 0 (NaN
+    when fewer than three; the running maximum, so an error oscillating with
+    the motion is measured by its envelope)."""
+    t = np.asarray(t, dtype=float)
+    error = np.abs(np.asarray(error, dtype=float))
+    result = dict.fromkeys(GROWTH_COLUMNS, np.nan)
+    if not len(t):
+        return result
+    since = t - t[0]
+    span = since[-1]
+    first, last = since <= span / 4, since >= 3 * span / 4
+    result["error_first_quarter"] = float(np.nanmax(error[first])) if np.isfinite(error[first]).any() else np.nan
+    result["error_last_quarter"] = float(np.nanmax(error[last])) if np.isfinite(error[last]).any() else np.nan
+    envelope = np.fmax.accumulate(error)
+    fitted = (since > 0) & (envelope > 0) & np.isfinite(envelope)
+    if fitted.sum() >= 3 and np.ptp(np.log(since[fitted])) > 0:
+        result["growth_exponent"] = float(np.polyfit(np.log(since[fitted]), np.log(envelope[fitted]), 1)[0])
+    return result
+
+
+#: Health column → (tolerance class whose bound applies, or None for "must be 0").
+HEALTH_BOUNDS = {"nonfinite": None, "gap": "position", "drive_error": "angle", "assembly_flip": None,
+                 "power_residual": "torque", "constraint_drift": "angle", "energy_drift": "velocity",
+                 "energy_balance": "torque"}
+#: The energy balance is judged only where the work's quadrature error
+#: (mechval.judging.health's energy_quadrature) is at most this share of its bound,
+#: so that a verdict speaks of the engine, not of the sample interval.
+QUADRATURE_SHARE = 0.1
+
+
+def _health_rows(health: pd.DataFrame, tolerance: Tolerance, ids: dict) -> list[dict]:
+    rows = []
+    t = health["t"].to_numpy()
+    for name, cls in HEALTH_BOUNDS.items():
+        row = dict(ids, signal=f"health.{name}", **{"class": "health"}, peak=np.nan, rms_error=np.nan,
+                   relative_error=np.nan, missing=0, reason="")
+        bound = tolerance[cls] if cls else 0.0
+        row.update(tolerance=bound, bound=bound)
+        if name not in health:
+            if name not in NOT_APPLICABLE:      # else the measure does not apply: no row
+                rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
+                                 reason="not available for this mechanism"))
+            continue
+        values = health[name].to_numpy(dtype=float)
+        if not np.isfinite(values).any():
+            rows.append(dict(row, max_error=np.nan, t_max=np.nan, ratio=np.nan, verdict="missing",
+                             reason="undefined for this run: the engine does not report the signals it needs, "
+                                    "or nothing moves (no power or energy to scale it by)"))
+            continue
+        row.update(error_growth(t, values))
+        quadrature = float(np.nanmax(health["energy_quadrature"])) if name == "energy_balance" else 0.0
+        if quadrature > QUADRATURE_SHARE * bound:
+            rows.append(dict(row, max_error=float(np.nanmax(values)), t_max=np.nan, ratio=np.nan, verdict="missing",
+                             reason=f"the samples are too coarse to integrate the applied power: the work's "
+                                    f"quadrature error is ~{quadrature:.2g}, over {QUADRATURE_SHARE:g} of the bound "
+                                    "(add samples)"))
+            continue
+        worst = int(np.nanargmax(values))
+        value = float(values[worst])
+        ratio = value / bound if bound else (0.0 if value == 0 else np.inf)
+        rows.append(dict(row, max_error=value, t_max=float(t[worst]), ratio=ratio,
+                         rms_error=float(np.sqrt(np.nanmean(values**2))),
+                         missing=int((~np.isfinite(values)).sum()),
+                         verdict="pass" if ratio <= 1.0 else "fail",
+                         reason="" if ratio <= 1.0 or cls else f"{int(np.nansum(values))} sample(s)"))
+    return rows
+
+
+def passed(records: pd.DataFrame) -> bool:
+    """True when no record failed (missing values with a reason do not fail)."""
+    return not (records["verdict"] == "fail").any()
+

@@ -22,6 +22,7 @@ from mechval.scenarios import builtin_path
 from mechval.records.signals import SIGNAL_CLASS, Signals
 
 from . import baseline as bl
+from . import baseline_store as store
 from .defaults import Limits
 from .plan import prepare
 from .preflight import UsageError, check_runs, check_writable, chosen_engines, chosen_scenarios, worker_count
@@ -44,10 +45,10 @@ def save_command(scenarios: list, engines: list[str], root: Path, force: bool, w
     exists and `force` is not given, or lies behind a symbolic link."""
     tasks = tasks_for(scenarios, engines)
     versions = checked_path_names(tasks)
-    targets = [bl.baseline_path(root, t.engine, versions[t.engine], t.scenario.name, t.setting) for t in tasks]
+    targets = [store.baseline_path(root, t.engine, versions[t.engine], t.scenario.name, t.setting) for t in tasks]
     for target in targets:
-        bl.refuse_links(target, root)
-        bl.remove_stale_temporaries(target.parent)
+        store.refuse_links(target, root)
+        store.remove_stale_temporaries(target.parent)
     existing = [p for p in targets if p.exists() or p.with_suffix(".json").exists()]
     if existing and not force:
         listing = "\n".join(f"  {p}" for p in existing)
@@ -57,7 +58,7 @@ def save_command(scenarios: list, engines: list[str], root: Path, force: bool, w
     meta = provenance()
     failures = 0
 
-    def store(outcome: Outcome) -> None:
+    def record(outcome: Outcome) -> None:
         nonlocal failures
         signals, task = outcome.signals, outcome.task
         error = outcome.error
@@ -66,12 +67,12 @@ def save_command(scenarios: list, engines: list[str], root: Path, force: bool, w
             error = f"non-finite values without a reason ({'; '.join(gaps)})"
         elif signals is not None and signals.version != versions[task.engine]:
             error = f"the worker ran {task.engine} {signals.version}, not {versions[task.engine]}"
-        path = None if error else bl.baseline_path(root, task.engine, signals.version, task.scenario.name,
-                                                   task.setting)
+        path = None if error else store.baseline_path(root, task.engine, signals.version, task.scenario.name,
+                                                      task.setting)
         if path is not None:
             try:
-                bl.save(path, signals, run_metadata(task, signals, meta, outcome.sensitivity), overwrite=force)
-            except (bl.BaselineAppeared, bl.LinkInside) as exc:
+                store.save(path, signals, run_metadata(task, signals, meta, outcome.sensitivity), overwrite=force)
+            except (store.BaselineAppeared, store.LinkInside) as exc:
                 error = str(exc)
             except OSError as exc:
                 error = f"cannot write {exc.filename or path}: {exc.strerror or exc}"
@@ -79,10 +80,10 @@ def save_command(scenarios: list, engines: list[str], root: Path, force: bool, w
             failures += 1
             print(f"FAILED {task.label}: {error} (no baseline written)", file=sys.stderr)
             return
-        bl.obtained_path(path).unlink(missing_ok=True)      # a regression's new signals, now recorded
+        store.obtained_path(path).unlink(missing_ok=True)      # a regression's new signals, now recorded
         print(f"saved {path}")
 
-    run_tasks(tasks, workers=workers, timeout=TIMEOUT, on_done=store, body=sensitive_task)
+    run_tasks(tasks, workers=workers, timeout=TIMEOUT, on_done=record, body=sensitive_task)
     return 1 if failures else 0
 
 
@@ -106,16 +107,16 @@ def checked_path_names(tasks: list[Task]) -> dict[str, str]:
     anything runs: a name like "../../x" must not write outside it)."""
     for task in tasks:
         try:
-            bl.checked_name(task.scenario.name, "scenario name")
-        except bl.UnsafeName as exc:
+            store.checked_name(task.scenario.name, "scenario name")
+        except store.UnsafeName as exc:
             raise ScenarioError(task.scenario.source, "name", str(exc)) from None
     versions = {}
     for engine in dict.fromkeys(t.engine for t in tasks):
         versions[engine] = adapter_class(engine).version()
         try:
-            bl.checked_name(versions[engine], f"{engine} version")
-        except bl.UnsafeName as exc:
-            raise bl.UnsafeName(f"the installed {engine} library: {exc}") from None
+            store.checked_name(versions[engine], f"{engine} version")
+        except store.UnsafeName as exc:
+            raise store.UnsafeName(f"the installed {engine} library: {exc}") from None
     return versions
 
 
@@ -146,23 +147,23 @@ def check_run(root: Path, task: Task, signals: Signals, reference: Signals, prov
     `obtained_root` in the same layout (pytest: its temporary folder); a
     check that passes removes a stale one."""
     name, version = task.scenario.name, signals.version
-    versions = bl.stored_versions(root, task.engine, name, task.setting)
+    versions = store.stored_versions(root, task.engine, name, task.setting)
     if version not in versions:
         lines = [f"{task.label}: no baseline for the installed {task.engine} {version} in {root}"]
         if versions:
             lines.append(f"  for information only, the newest stored version ({task.engine} {versions[-1]}):")
             try:
-                other = bl.load(bl.baseline_path(root, task.engine, versions[-1], name, task.setting))
+                other = store.load(store.baseline_path(root, task.engine, versions[-1], name, task.setting))
                 lines += ["  " + line for line in _comparison(task, other, signals, reference, provenance, rtol,
                                                                signal_rtol)[0]]
-            except bl.CorruptBaseline as exc:
+            except store.CorruptBaseline as exc:
                 lines.append(f"    unreadable: {exc}")
         lines.append(f"  verdict: NO BASELINE; record it with\n    {save_command_line(task, root)}")
         return "no baseline", "\n".join(lines)
-    path = bl.baseline_path(root, task.engine, version, name, task.setting)
+    path = store.baseline_path(root, task.engine, version, name, task.setting)
     try:
-        base = bl.load(path)
-    except bl.CorruptBaseline as exc:
+        base = store.load(path)
+    except store.CorruptBaseline as exc:
         return "corrupt baseline", (f"{task.label}: corrupt baseline {exc}\n"
                                     "  verdict: CORRUPT BASELINE; restore it from version control, or record "
                                     f"it again with\n    {save_command_line(task, root, force=True)}")
@@ -174,15 +175,15 @@ def check_run(root: Path, task: Task, signals: Signals, reference: Signals, prov
         if task.feed is not None else
         f"NOT fed ({feed_of(base, task)[1] or 'the check ran without them'}): derived again on this machine, "
         "whose floating point may move the engine's signals beyond the threshold"))
-    obtained = bl.obtained_path(bl.baseline_path(obtained_root or root, task.engine, version, name, task.setting))
+    obtained = store.obtained_path(store.baseline_path(obtained_root or root, task.engine, version, name, task.setting))
     if not regression:
         obtained.unlink(missing_ok=True)
         return "ok", "\n".join(lines + ["  verdict: OK"])
     try:
-        bl.refuse_links(obtained, obtained_root or root)
+        store.refuse_links(obtained, obtained_root or root)
         signals.to_csv(obtained)
         lines.append(f"  new signals written to {obtained} (diff it with the baseline)")
-    except bl.LinkInside as exc:
+    except store.LinkInside as exc:
         lines.append(f"  new signals not written: {exc}")
     except OSError as exc:      # e.g. a read-only checkout: the verdict stands without the file
         lines.append(f"  new signals not written to {obtained}: {exc.strerror or exc}")
@@ -191,7 +192,7 @@ def check_run(root: Path, task: Task, signals: Signals, reference: Signals, prov
     return "regression", "\n".join(lines)
 
 
-def _comparison(task: Task, base: bl.Baseline, signals: Signals, reference: Signals,
+def _comparison(task: Task, base: store.Baseline, signals: Signals, reference: Signals,
                 provenance: Mapping[str, str], rtol: float,
                 signal_rtol: Mapping[str, float] | None) -> tuple[list[str], bool]:
     """The lines describing a run against a stored baseline (the first
@@ -251,10 +252,10 @@ def fed(root: Path, task: Task, version: str) -> Task:
     """The task with the feed of its stored baseline (the installed
     version's, `feed_of`), so that the check runs the engine on exactly
     what it was fed then; as it is where there is none."""
-    path = bl.baseline_path(root, task.engine, version, task.scenario.name, task.setting)
+    path = store.baseline_path(root, task.engine, version, task.scenario.name, task.setting)
     try:
-        feed, _ = feed_of(bl.load(path), task)
-    except bl.CorruptBaseline:
+        feed, _ = feed_of(store.load(path), task)
+    except store.CorruptBaseline:
         return task
     return task if feed is None else dataclasses.replace(task, feed=feed)
 
@@ -278,7 +279,7 @@ def derived_now(task: Task) -> list[str]:
     return notes
 
 
-def feed_of(base: bl.Baseline, task: Task) -> tuple[Feed | None, str]:
+def feed_of(base: store.Baseline, task: Task) -> tuple[Feed | None, str]:
     """The baseline's feed for this task, or None and why it cannot be fed:
     it records no inputs, the scenario changed since (old inputs would not
     fit it), or the adapter no longer takes the recorded settings."""

@@ -200,7 +200,7 @@ def _error(exc: Exception) -> tuple[int, str] | None:
     line (None: a bug, shown with its traceback). Their modules are
     imported here, not before: a command imports what it uses."""
     from mechval.model.scenario import ScenarioError
-    from .baseline import LinkInside, UnsafeName
+    from .baseline_store import LinkInside, UnsafeName
     from .baseline_run import BaselinesExist
     from .executors import SchedulerUnreachable
     from .preflight import EngineFailure, UsageError

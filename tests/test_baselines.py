@@ -24,6 +24,7 @@ import pytest
 from conftest import BUILTIN, CLOSED_FORM, ENGINES, builtin_reference, builtin_scenario, engine_or_skip
 from fake_engines import registered
 from mechval.harness import baseline as bl
+from mechval.harness import baseline_store as store
 from mechval.reference.linkages import build_mechanism
 from mechval.model.mechanism import GROUND
 from mechval.harness.baseline_run import check_run, fed
@@ -82,7 +83,7 @@ def test_missing_baseline_of_the_installed_version_fails_not_skips(any_engine, t
     task = tasks_for([builtin_scenario(CLI_SCENARIO)], [any_engine])[0]
     installed = registry.adapter_class(any_engine).version()
     older = tmp_path / "baselines" / any_engine / "0.0.1" / CLI_SCENARIO
-    shutil.copytree(bl.baseline_path(ROOT, any_engine, installed, CLI_SCENARIO, task.setting).parent, older)
+    shutil.copytree(store.baseline_path(ROOT, any_engine, installed, CLI_SCENARIO, task.setting).parent, older)
     monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path / "baselines")
     try:
         test_engine_matches_its_baseline(task, tmp_path / "obtained")
@@ -102,11 +103,11 @@ def test_missing_baseline_of_the_installed_version_fails_not_skips(any_engine, t
 # --- the comparison rule, on committed data (no engine run) ---------------
 
 @pytest.fixture
-def stored() -> bl.Baseline:
+def stored() -> store.Baseline:
     if not COMMITTED:
         pytest.skip("no committed baselines")
     # A closed-form kind's baseline: the tests below perturb its T12.
-    return bl.load(next(p for p in COMMITTED if p.parent.name in CLOSED_FORM))
+    return store.load(next(p for p in COMMITTED if p.parent.name in CLOSED_FORM))
 
 
 def perturbed(signals: Signals, name: str, factor: float) -> Signals:
@@ -178,21 +179,21 @@ def test_thresholds_tell_apart_what_they_must_on_the_committed_baselines():
     pairs = [(path, new / path.relative_to(old)) for path in sorted(old.rglob("*.csv"))]
     assert pairs and all(after.exists() for _, after in pairs)
     for before, after in pairs:
-        a, b = bl.load(before).signals, bl.load(after).signals
+        a, b = store.load(before).signals, store.load(after).signals
         moved = max(np.nanmax(np.abs(b[c] - a[c])) / np.nanmax(np.abs(a[c])) for c in a.frame.columns[1:]
                     if np.nanmax(np.abs(a[c])) > 0)
         assert moved >= 1e6 * bl.DEFAULT_RTOL, before
         # The same upgrade against the new version's thresholds, which its
         # sensitivity raises: still a regression by far (measured 1.5e6 to
         # 2.9e7 times the threshold of the signal it moves most).
-        rows = bl.compare_to_baseline(b, a, sensitivity=bl.load(after).sensitivity).dropna(subset=["max_abs_diff"])
+        rows = bl.compare_to_baseline(b, a, sensitivity=store.load(after).sensitivity).dropna(subset=["max_abs_diff"])
         assert (rows["max_abs_diff"] / rows["threshold"]).max() >= 1e4, before
     scenes = {p: builtin_scenario(p.parent.name).scene for p in COMMITTED}
     laws = {p: scene.drives[0].law for p, scene in scenes.items() if scene.drives and not scene.forward_dynamics}
     steady = [p for p, law in laws.items() if law.alpha == 0.0 and law.omega0 != 0.0]
     assert steady
     for path in steady:
-        residue = float(np.abs(bl.load(path).signals[crank_alpha(builtin_scenario(path.parent.name))]).max())
+        residue = float(np.abs(store.load(path).signals[crank_alpha(builtin_scenario(path.parent.name))]).max())
         assert residue == 0.0 or residue >= 1e4 * bl.ABSOLUTE_FLOOR, (path, residue)
 
 
@@ -213,7 +214,7 @@ def test_every_committed_baseline_of_an_installed_version_records_its_inputs_and
     pinned = {(p.parts[-4], p.parts[-3]) for p in COMMITTED if p.parts[-3] != "3.3.7"}
     assert pinned, "baselines of the pinned engine versions are committed"
     for path in (p for p in COMMITTED if (p.parts[-4], p.parts[-3]) in pinned):
-        base = bl.load(path)
+        base = store.load(path)
         feed, why = base.feed()
         assert feed is not None and len(feed.reads) >= 1, (path, why)
         # A restructured model keeps the hash (`physics`), or no check could feed these.
@@ -274,10 +275,10 @@ def test_stored_versions_are_ordered_as_releases(stored, tmp_path):
     one has none: 3.10.0 is newer than 3.3.7, a hand-made name newest."""
     meta = stored.meta
     for version in ("3.3.7", "3.10.0", "4.0.0", "local-build"):
-        bl.save(bl.baseline_path(tmp_path, "e", version, meta["scenario"], meta["setting"]), stored.signals, meta)
-    assert bl.stored_versions(tmp_path, "e", meta["scenario"], meta["setting"]) == ["3.3.7", "3.10.0", "4.0.0",
+        store.save(store.baseline_path(tmp_path, "e", version, meta["scenario"], meta["setting"]), stored.signals, meta)
+    assert store.stored_versions(tmp_path, "e", meta["scenario"], meta["setting"]) == ["3.3.7", "3.10.0", "4.0.0",
                                                                                     "local-build"]
-    assert bl.stored_versions(tmp_path, "other", meta["scenario"], meta["setting"]) == []
+    assert store.stored_versions(tmp_path, "other", meta["scenario"], meta["setting"]) == []
 
 
 def test_accuracy_change_says_improved_worsened_unchanged():
@@ -334,7 +335,7 @@ def test_check_catches_and_explains_changes(any_engine, tmp_path, capsys):
     assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 0
     assert "bit-identical" in capsys.readouterr().out
     path = next(tmp_path.rglob("default.csv"))
-    original, original_bytes = bl.load(path), path.read_bytes()
+    original, original_bytes = store.load(path), path.read_bytes()
 
     perturbed(original.signals, "T12", 1 + 1e-7).to_csv(path)
     assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 1
@@ -374,12 +375,12 @@ def test_regression_stands_when_the_obtained_file_cannot_be_written(stored, tmp_
     engine_or_skip(meta["engine"])
     scenario = builtin_scenario(meta["scenario"])
     task = next(t for t in tasks_for([scenario], [meta["engine"]]) if t.setting == meta["setting"])
-    path = bl.baseline_path(tmp_path, meta["engine"], meta["version"], meta["scenario"], meta["setting"])
-    bl.save(path, stored.signals, meta)
-    bl.obtained_path(path).mkdir()          # in the way of the file
+    path = store.baseline_path(tmp_path, meta["engine"], meta["version"], meta["scenario"], meta["setting"])
+    store.save(path, stored.signals, meta)
+    store.obtained_path(path).mkdir()          # in the way of the file
     new = perturbed(stored.signals, "T12", 1 + 1e-7)
     verdict, text = check_run(tmp_path, task, new, builtin_reference(meta["scenario"]), provenance())
-    assert verdict == "regression" and f"new signals not written to {bl.obtained_path(path)}" in text
+    assert verdict == "regression" and f"new signals not written to {store.obtained_path(path)}" in text
 
 
 def test_save_refuses_non_finite_signals_without_a_reason(tmp_path, monkeypatch, capsys):
@@ -442,11 +443,11 @@ CORRUPTIONS = {
 def test_corrupt_baseline_is_its_own_verdict(stored, tmp_path, corruption):
     corrupt, reason = CORRUPTIONS[corruption]
     meta = stored.meta
-    path = bl.baseline_path(tmp_path, meta["engine"], meta["version"], meta["scenario"], meta["setting"])
-    bl.save(path, stored.signals, meta)
+    path = store.baseline_path(tmp_path, meta["engine"], meta["version"], meta["scenario"], meta["setting"])
+    store.save(path, stored.signals, meta)
     corrupt(path, path.with_suffix(".json"))
-    with pytest.raises(bl.CorruptBaseline, match=re.escape(reason)):
-        bl.load(path)
+    with pytest.raises(store.CorruptBaseline, match=re.escape(reason)):
+        store.load(path)
     task = Task(builtin_scenario(meta["scenario"]), meta["engine"], meta["setting"])
     verdict, text = check_run(tmp_path, task, stored.signals, builtin_reference(meta["scenario"]), provenance())
     assert verdict == "corrupt baseline"
@@ -504,8 +505,8 @@ def test_unsafe_scenario_name_is_refused_before_anything_is_written(tmp_path, mo
         assert (f"{scene}: name: scenario name {name!r} cannot name a baseline folder or file" in error
                 or len(name) > 100 and f"{scene}: name: at most 100 characters" in error)    # refused at load
     assert files_under(tmp_path) == before and not (tmp_path / "abs").exists()
-    with pytest.raises(bl.UnsafeName):
-        bl.baseline_path(root, "faithful", "1.0", name, "default")
+    with pytest.raises(store.UnsafeName):
+        store.baseline_path(root, "faithful", "1.0", name, "default")
 
 
 def test_safe_names_are_written_only_under_the_dir(tmp_path, monkeypatch):
@@ -579,13 +580,13 @@ def test_check_does_not_read_a_baseline_through_a_link(tmp_path, monkeypatch, ca
 def test_save_without_force_never_replaces_a_file_that_appeared_meanwhile(stored, tmp_path):
     """Two saves of one baseline: the second finds the first's file at the
     moment it would write and leaves it (before: silently overwritten)."""
-    path = bl.baseline_path(tmp_path, "e", "1.0", stored.meta["scenario"], "default")
-    bl.save(path, stored.signals, stored.meta)
+    path = store.baseline_path(tmp_path, "e", "1.0", stored.meta["scenario"], "default")
+    store.save(path, stored.signals, stored.meta)
     first = path.read_bytes()
-    with pytest.raises(bl.BaselineAppeared, match="appeared while this save ran"):
-        bl.save(path, perturbed(stored.signals, stored.signals.frame.columns[-1], 2.0), stored.meta)
+    with pytest.raises(store.BaselineAppeared, match="appeared while this save ran"):
+        store.save(path, perturbed(stored.signals, stored.signals.frame.columns[-1], 2.0), stored.meta)
     assert path.read_bytes() == first
-    bl.save(path, perturbed(stored.signals, stored.signals.frame.columns[-1], 2.0), stored.meta, overwrite=True)
+    store.save(path, perturbed(stored.signals, stored.signals.frame.columns[-1], 2.0), stored.meta, overwrite=True)
     assert path.read_bytes() != first
     assert [p.name for p in path.parent.iterdir()] and not list(path.parent.glob(".*.tmp"))
 

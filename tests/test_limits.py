@@ -286,7 +286,7 @@ def test_output_checked_before_engine_work(fakes, no_engine_work, tmp_path, caps
 # --- output files: permissions and escaping -------------------------------------------------
 
 def test_output_files_follow_the_umask(tmp_path):
-    from mechval.harness.baseline import save
+    from mechval.harness.baseline_store import save
     from mechval.records.signals import write_folder_atomically
     signals = simulate(parse(slider_crank(time={"end": 0.1, "samples": 11}), "x.toml"), "reference")
     previous = os.umask(0o022)

@@ -3,6 +3,9 @@
 adapter", and docs/testing.md):
 
 - `AdapterContract`: the adapter contract as one test class to subclass;
+- `PlanarContract`: the planar scenes' contract (several drives, slides
+  between moving links, spring-dampers, body torques, six-bars, …) as
+  one more class to subclass;
 - `engine_or_skip(name)`: an adapter, or skip the test with the reason;
 - `compare_with_reference(scene, engine, overrides)`: a `Comparison`
   (records, signals, reference) of one engine run against the reference;
@@ -22,6 +25,7 @@ import importlib
 #: Public name → the module of this package that defines it.
 _MODULES = {
     "AdapterContract": "contract",
+    "PlanarContract": "planar_contract",
     "engine_or_skip": "comparison",
     "compare_with_reference": "comparison",
     "Comparison": "comparison",

@@ -1,6 +1,6 @@
 """Exudyn on planar files beyond the four kinds (issue 14): the shared
-planar contract (tests/planar_contract.py) on the scenes of
-tests/planar_scenes.py, and the audit catching a fault injected into each
+planar contract (testing/planar_contract.py) on the scenes of
+testing/planar_scenes.py, and the audit catching a fault injected into each
 new element of Exudyn's compiled model. Figures:
 `.venv/bin/python tests/bench/planar_figures.py --engine exudyn` prints every
 scene's worst signals.
@@ -19,8 +19,8 @@ from mechval.harness.audit_run import audit_scenario
 from mechval.harness.simulate import simulate
 from mechval.reference.linkages import build_mechanism
 from mechval.model.scenario import ScenarioError
-from planar_contract import PlanarContract
-from planar_scenes import scene
+from mechval.testing.planar_contract import PlanarContract
+from mechval.testing.planar_scenes import scene
 
 pytestmark = pytest.mark.engine     # every test here runs Exudyn
 

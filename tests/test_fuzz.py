@@ -34,7 +34,7 @@ from mechval.harness.cli import main
 from mechval.scenarios import builtin_path
 from mechval.records.signals import SIGNAL_CLASS
 from toml_fuzz import Case, mutate, mutate_text
-from twins import twin_document
+from mechval.testing.twins import twin_document
 
 #: Seconds one case may take before it counts as a hang (a refusal takes
 #: milliseconds; the slowest accepted case loads and simulates 10⁶ samples).
@@ -45,7 +45,7 @@ ENGINE_MAX_STEPS = 20_000
 
 def document(name: str) -> dict:
     """A built-in file's document, or for "twin/NAME" the built-in NAME
-    written as a planar file (tests/twins.py)."""
+    written as a planar file (testing/twins.py)."""
     if name.startswith("twin/"):
         return twin_document(name.removeprefix("twin/"))
     return tomllib.loads(builtin_path(name).read_text(encoding="utf-8"))
@@ -139,7 +139,7 @@ def run_all(capfd, tmp_path, labelled_cases, engine: str = "reference", extra=()
 
 
 #: Planar files (`mechanism = "planar"`): the closed-form built-ins written
-#: as planar files ("twin/NAME", tests/twins.py). The default run takes one
+#: as planar files ("twin/NAME", testing/twins.py). The default run takes one
 #: of each kind; the 509-revolution twin (slow to follow) only in the slow run.
 PLANAR = [f"twin/{name}" for name in CLOSED_FORM]
 PLANAR_DEFAULT = [f"twin/{name}" for name in

@@ -22,7 +22,7 @@ from mechval.model.scenario import ScenarioError
 from mechval.scenarios import builtin_path, kinds, load, parse
 from mechval.harness.simulate import simulate
 from mechval.testing.scenes import fourbar, slider_crank
-from twins import twin_document
+from mechval.testing.twins import twin_document
 
 
 def refused(data, key: str, words: str) -> ScenarioError:

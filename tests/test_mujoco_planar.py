@@ -1,6 +1,6 @@
 """MuJoCo on planar files beyond the four kinds (issue 14): the shared
-planar contract (tests/planar_contract.py) on the scenes of
-tests/planar_scenes.py, and what only MuJoCo has: its inverse mode
+planar contract (testing/planar_contract.py) on the scenes of
+testing/planar_scenes.py, and what only MuJoCo has: its inverse mode
 reproduces the reference, the audit reads each new element's numbers from
 the compiled model, and every feature is declared."""
 
@@ -12,8 +12,8 @@ from mechval.records.audit import failures, format_audit
 from mechval.judging.compare import compare
 from mechval.harness.simulate import simulate
 from mechval.reference.linkages import build_mechanism
-from planar_contract import PlanarContract
-from planar_scenes import SCENES, scene
+from mechval.testing.planar_contract import PlanarContract
+from mechval.testing.planar_scenes import SCENES, scene
 
 pytestmark = pytest.mark.engine
 mujoco = pytest.importorskip("mujoco")

@@ -29,7 +29,7 @@ from mechval.scenarios import load, parse
 from mechval.records.signals import SIGNAL_CLASS
 from scales import motion_scales, size
 from test_planar_solver import BOUND, column_scales, worst
-from twins import twin_document, twin_text
+from mechval.testing.twins import twin_document, twin_text
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Runs too long for the default suite are checked on their first seconds.
@@ -37,7 +37,7 @@ DEFAULT_END = {"fourbar-long-run": 2.0}
 
 
 def twin(name: str, end: float | None = None):
-    """Built-in `name` written as a planar file (tests/twins.py) and loaded
+    """Built-in `name` written as a planar file (testing/twins.py) and loaded
     back, its run cut at `end` if given."""
     data = twin_document(name)
     if end is not None:

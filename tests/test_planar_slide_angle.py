@@ -17,8 +17,8 @@ from mechval.harness.simulate import simulate
 from mechval.scenarios import parse
 from mechval.scenarios.planar import AXIS_SNAP
 from conftest import CLOSED_FORM
-from planar_scenes import SCENES
-from twins import twin_document
+from mechval.testing.planar_scenes import SCENES
+from mechval.testing.twins import twin_document
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -112,7 +112,7 @@ def shipped_planar_files() -> dict[str, dict]:
     files = {str(path.relative_to(ROOT)): tomllib.loads(path.read_text())
              for folder in ("scenarios", "scenarios/planar", "scenarios/planar-extra")
              for path in sorted((ROOT / folder).glob("*.toml"))}
-    files.update({f"tests/planar_scenes.py:{name}": tomllib.loads(text) for name, text in SCENES.items()})
+    files.update({f"testing/planar_scenes.py:{name}": tomllib.loads(text) for name, text in SCENES.items()})
     files.update({f"twin:{name}": twin_document(name) for name in CLOSED_FORM})
     return {name: data for name, data in files.items() if data.get("mechanism") == "planar"
             and any(j.get("type") == "prismatic" for j in data.get("joint", []))}
@@ -123,7 +123,7 @@ SHIPPED = shipped_planar_files()
 
 def test_every_shipped_slide_is_checked():
     assert {"twin:hand-pump", "twin:shaper-quick-return",
-            "scenarios/slider-driven-slider-crank.toml", "tests/planar_scenes.py:slider-driven"} <= set(SHIPPED)
+            "scenarios/slider-driven-slider-crank.toml", "testing/planar_scenes.py:slider-driven"} <= set(SHIPPED)
     assert len(SHIPPED) >= 10
 
 

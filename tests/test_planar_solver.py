@@ -34,7 +34,7 @@ import mechval.reference.planar.positions as positions
 from mechval.reference.planar.solver import MechanismError, PlanarSolver, raw_planar
 from mechval.reference.adapter import raw_reference
 from scales import motion_scales, size
-from twins import twin
+from mechval.testing.twins import twin
 
 #: What "agrees" means for the general reference, as a fraction of each
 #: quantity's scale (angles: absolute, rad).

@@ -1,6 +1,6 @@
 """PyBullet on planar files beyond the four kinds (issue 14): the shared
-planar contract (tests/planar_contract.py) on the scenes of
-tests/planar_scenes.py, at the default tolerances; where the layout hangs
+planar contract (testing/planar_contract.py) on the scenes of
+testing/planar_scenes.py, at the default tolerances; where the layout hangs
 a link below another (a five-bar driven at a pin between moving links, a
 Scotch yoke) and which reactions it then derives; what it still cannot
 build, refused naming the key.
@@ -17,8 +17,8 @@ import pytest
 
 from mechval.harness.simulate import simulate
 from mechval.reference.linkages import build_mechanism
-from planar_contract import PlanarContract
-from planar_scenes import scene
+from mechval.testing.planar_contract import PlanarContract
+from mechval.testing.planar_scenes import scene
 
 pytestmark = pytest.mark.engine
 

@@ -9,7 +9,7 @@ from conftest import BUILTIN, ENGINES
 from mechval.model.scenario import ScenarioError
 from mechval.scenarios import load, parse
 from mechval.testing.scenes import fourbar, slider_crank
-from twins import twin_document
+from mechval.testing.twins import twin_document
 
 
 @pytest.mark.parametrize("name", BUILTIN)

@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 from mechval.judging.compare import compare  # noqa: E402
 from mechval.engines.registry import engine_names  # noqa: E402
 from mechval.harness.simulate import simulate  # noqa: E402
-from planar_scenes import SCENES, scene  # noqa: E402
+from mechval.testing.planar_scenes import SCENES, scene  # noqa: E402
 
 
 def main() -> None:

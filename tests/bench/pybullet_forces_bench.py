@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mechval.engines.pybullet.adapter import PybulletAdapter   # noqa: E402
 from mechval.engines.pybullet.run import run_model   # noqa: E402
 from mechval.reference.linkages import build_mechanism                       # noqa: E402
-from planar_scenes import SCENES, scene                             # noqa: E402
+from mechval.testing.planar_scenes import SCENES, scene                             # noqa: E402
 
 
 def stepping_time(mechanism, times, settings) -> tuple[float, int]:

@@ -1,11 +1,11 @@
 """What every engine must do on planar files beyond the four kinds (issue
 14), as one suite each engine's planar tests subclass, like
-tests/contract.py's AdapterContract:
+`mechval.testing.AdapterContract` (a plug-in's tests too):
 
     class TestPlanarContract(PlanarContract):
         engine = "mujoco"
 
-On each scene of tests/planar_scenes.py (two drives, a prismatic drive,
+On each scene of testing/planar_scenes.py (two drives, a prismatic drive,
 one with the slider's centre of mass off its joint point, a spring-damper
 between moving links, body torques, a two-loop six-bar, a five-bar driven
 at a pin between moving links, a Scotch yoke, a ground pin written with
@@ -30,12 +30,12 @@ from typing import ClassVar, Mapping
 import numpy as np
 import pytest
 
-from conftest import engine_or_skip
+from mechval.testing.comparison import engine_or_skip
 from mechval.records.audit import failures, force_item, format_audit
 from mechval.judging.compare import compare
 from mechval.harness.simulate import simulate
 from mechval.reference.linkages import build_mechanism
-from planar_scenes import SCENES, TWIN, scene
+from .planar_scenes import SCENES, TWIN, scene
 from mechval.scenarios import parse
 
 

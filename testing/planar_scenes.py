@@ -1,5 +1,5 @@
 """Planar files that use what the four closed-form kinds cannot, for the
-engines' planar tests (tests/planar_contract.py and the per-engine
+engines' planar tests (testing/planar_contract.py and the per-engine
 tests/test_<engine>_planar.py): two drives, a prismatic drive (also with
 the slider's centre of mass off its joint point), a spring-damper between
 two moving links, body torques, a two-loop six-bar, a five-bar driven at a
@@ -19,7 +19,7 @@ from __future__ import annotations
 import tomllib
 
 from mechval.scenarios import parse
-from twins import twin_text
+from .twins import twin_text
 
 #: fourbar-seed's links (Norton's crank-rocker of the published 9x9 study,
 #: docs/scenario-format.md), the base of the four-bar and six-bar scenes;

@@ -31,9 +31,11 @@ Conversion of PyBullet's native output to the Fij convention (docs/conventions.m
   t_n+1 is the one that acted during that step, i.e. at t_n (stamping it at
   t_n+1 would turn an O(dt²) error into O(dt); docs/engines.md).
 - Semi-implicit Euler velocities stand for the step's middle, so the
-  velocity at t_n is the mean of the readings before and after the step
-  from t_n, and the acceleration at t_n is their difference over dt (the
-  acceleration the engine applied in that step).
+  angular velocity at t_n is the mean of the readings before and after the
+  step from t_n, and the angular acceleration their difference over dt
+  (what the engine applied in that step); linear ones are central
+  differences of the positions one step either side (`Stepper.assemble`
+  says why).
 
 Known limit of the sensor (measured, not corrected here): at a joint to
 the ground its centripetal term uses the mid-step speed ω(t − dt/2), so F14

@@ -253,9 +253,10 @@ class Stepper:
         sampled_at = lambda n: n >= self.preroll and (n - self.preroll) % self.per_sample == 0  # noqa: E731
         for n in range(total):
             sampled = sampled_at(n)
-            # A derived reaction needs the positions one step before each
-            # sample (slide).
-            if sampled or every_step or (self.model.derived and sampled_at(n + 1)):
+            # The positions one step before each sample: the linear rates
+            # at a sample are central differences (`assemble`), and a
+            # derived reaction (slide) needs them too.
+            if sampled or every_step or sampled_at(n + 1):
                 previous, state = state, self.read_bodies()
             if sampled:
                 before.append(state)
@@ -280,7 +281,7 @@ class Stepper:
             if sampled:
                 after.append(self.read_bodies())
                 reactions.append(self.read_reactions())
-        frame = self.assemble(before, after, reactions)
+        frame = self.assemble(earlier, before, after, reactions)
         if self.model.derived:
             frame = frame.assign(**self.derived_reactions(frame, earlier, before, after, loads))
         return frame, total
@@ -458,7 +459,7 @@ class Stepper:
                                             applied, self.dt))
         return columns
 
-    def assemble(self, before: list, after: list, reactions: list) -> pd.DataFrame:
+    def assemble(self, earlier: list, before: list, after: list, reactions: list) -> pd.DataFrame:
         """Raw columns at the samples (see the module docstring for stamps)."""
         columns: dict[str, np.ndarray] = {"t": self.times}
         t_start = self.times[0] - self.preroll * self.dt
@@ -469,6 +470,19 @@ class Stepper:
             post = np.array([s[b] for s in after])
             vel = 0.5 * (pre[:, 3:] + post[:, 3:])
             acc = (post[:, 3:] - pre[:, 3:]) / self.dt
+            # The frame origin's velocity and acceleration from its
+            # positions one step either side (O(dt²) about t_n): each
+            # velocity reading maps the mid-step joint rates through the
+            # Jacobian at the step's end, so their mean and difference are
+            # O(dt) off wherever the origin's motion depends on the
+            # configuration (ω·α·r·dt in a coupler's acceleration). Angular
+            # rates are sums of joint rates, exact as read. A sample with
+            # no step before it (a free run's first) keeps the readings.
+            back = [k for k, s in enumerate(earlier) if s is not None]
+            if back:
+                x_back = np.array([earlier[k][b][:2] for k in back])
+                vel[back, :2] = (post[back, :2] - x_back) / (2 * self.dt)
+                acc[back, :2] = (post[back, :2] - 2 * pre[back, :2] + x_back) / self.dt ** 2
             theta = _unwrap(pre[:, 2], vel[:, 2], self.times,
                             float(start[f"{b}.theta"].iloc[0]), float(start[f"{b}.omega"].iloc[0]), t_start)
             values = (pre[:, 0], pre[:, 1], theta, vel[:, 0], vel[:, 1], vel[:, 2], acc[:, 0], acc[:, 1], acc[:, 2])

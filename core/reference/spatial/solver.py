@@ -1,0 +1,273 @@
+"""The spatial reference for prescribed motion: positions, rates,
+reactions and drive efforts of a spatial system at any instants.
+
+As the planar reference (`mechval.reference.planar.solver`): assemble at
+the first instant (`structure.newton`), follow the branch by continuation
+over nodes, then at every requested instant, in batches:
+- positions: Newton from the nearest earlier node's second-order Taylor
+  prediction (on the group for rotations), to the fixed point;
+- velocities Φq·w = −Φt, accelerations Φq·ẇ = γ, multipliers from
+  M·ẇ + Φqᵀ·λ = Q (`forces`): square solves with the independent rows.
+
+Reactions from the multipliers (constraint loads are −Φqᵀ·λ, Nikravesh
+1988, ch. 11): a joint's rows give the load (force F, moment about the
+centre of mass) on body_j, or the opposite of body_i's where body_j is the
+ground; the raw columns are F and its moment M about Pj, world axes, the
+load BY body_i ON body_j. Drive efforts are −λ of their rows.
+
+Redundant rows (a rank-deficient Φq) carry λ = 0 here; λ is undetermined
+along the null space of Φqᵀ (one null vector per dependent row); a
+reaction column that such a vector reaches is reported missing with the
+reason, and every body's resultant constraint load (unique, −Φqᵀ·λ per
+body) is added as B.R.Fx … B.R.Mz, as the planar reference does.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+
+from mechval.reference.planar.constraints import MechanismError
+from mechval.reference.spatial.forces import AppliedForces, mass_matrix
+from mechval.reference.spatial.joints import Constraints, Pose
+from mechval.reference.spatial.rotation import exp_map, matrix_to_quaternion
+from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, moved, newton, structure
+from mechval.reference.spatial.system import SpatialSystem
+
+CHUNK = 1 << 12
+#: See `mechval.reference.planar.solver.UNIQUE_TOL`.
+UNIQUE_TOL = 1e-8
+#: Continuation: a node's prediction may miss its solution by this much
+#: (scaled) before the step is halved; below a tenth of it, the step grows.
+NODE_JUMP = 1e-3
+#: A batch instant further than this (scaled) from its prediction may
+#: have left the branch.
+BRANCH_JUMP = 1e-2
+SINGULAR_CONDITION = 1e10
+METHOD = "absolute coordinates, rotations on the group, Newton continuation, multipliers (Nikravesh 1988, Haug 1989)"
+RESULTANT = ("R.Fx", "R.Fy", "R.Fz", "R.Mx", "R.My", "R.Mz")
+
+
+@dataclass(frozen=True)
+class SpatialSolution:
+    frame: pd.DataFrame
+    missing: Mapping[str, str]
+    structure: Structure
+    facts: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class State:
+    """Positions, velocities (N, nb, 6), accelerations and multipliers at N instants."""
+
+    t: np.ndarray
+    pose: Pose
+    w: np.ndarray
+    dw: np.ndarray
+    lam: np.ndarray
+    jac: np.ndarray
+
+
+def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
+          extra: np.ndarray | None = None) -> State:
+    """Velocities, accelerations and multipliers at solved positions,
+    each by one square solve with the independent rows (`extra`: Q on top
+    of the applied forces, for the dynamics' callers)."""
+    idx = list(rows)
+    out = c.evaluate(pose, t)
+    J = out["jac"][:, idx]
+    nb = len(c.bodies)
+    rhs = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))["rhs"][:, idx]
+    w = np.linalg.solve(J, rhs[..., None])[..., 0].reshape(len(t), nb, 6)
+    gamma = c.evaluate(pose, t, w)["gamma"][:, idx]
+    dw = np.linalg.solve(J, gamma[..., None])[..., 0]
+    Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
+    M = mass_matrix(c.system, pose)
+    lam_kept = np.linalg.solve(np.swapaxes(J, 1, 2), (Q - np.einsum("nij,nj->ni", M, dw))[..., None])[..., 0]
+    lam = np.zeros((len(t), c.m))
+    lam[:, idx] = lam_kept
+    return State(t, pose, w, dw.reshape(len(t), nb, 6), lam, out["jac"])
+
+
+class SpatialSolver:
+    """Solve one spatial system with as many drives as degrees of freedom."""
+
+    def __init__(self, system: SpatialSystem):
+        self.system = system
+        self.c = Constraints(system)
+        self.forces = AppliedForces(self.c)
+        self.scaling = Scaling(self.c)
+
+    def assemble(self, t0: float) -> tuple[Pose, Structure]:
+        t = np.array([t0])
+        pose = newton(self.c, self.scaling, initial_pose(self.c), t, None)
+        found = structure(self.c, self.scaling, pose)
+        drives = len(self.system.drives)
+        if found.mobility != drives or len(found.independent) != self.c.n:
+            raise MechanismError("drive", f"the mobility is {found.mobility} (rank of the joints' Jacobian, "
+                                          f"Grübler–Kutzbach {found.grubler}) but {drives} drive"
+                                          f"{'s' if drives != 1 else ''} prescribe the motion"
+                                          + ("" if found.mobility != drives else ": the drives are dependent"))
+        angles = self.c.drive_angles(pose)
+        for d in self.system.drives:
+            if d.name in angles and np.cos(angles[d.name][0] - d.law.angle(t0)) < 0:
+                raise MechanismError(f"drive.{d.name}", "the assembly lands half a turn from the drive's angle: "
+                                                        "state body rotations closer to the assembled pose")
+        return pose, found
+
+    def _march(self, pose: Pose, found: Structure, t0: float, t_end: float) -> list[State]:
+        """Solved nodes from t0 to t_end, steps halved where a prediction
+        misses and grown where it is close."""
+        rows = found.independent
+        nodes = [rates(self.c, self.forces, pose, np.array([t0]), rows)]
+        h = (t_end - t0) / 16 if t_end > t0 else 0.0
+        while nodes[-1].t[0] < t_end:
+            last = nodes[-1]
+            step = min(h, t_end - last.t[0])
+            t = last.t + step
+            predicted = predict(last, t)
+            solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation")
+            jump = self.scaling.step(flat_difference(solved, predicted))[0]
+            if jump > NODE_JUMP and step > 1e-9 * max(1.0, abs(t_end - t0)):
+                h = step / 2
+                continue
+            nodes.append(rates(self.c, self.forces, solved, t, rows))
+            if jump < NODE_JUMP / 10:
+                h = step * 1.5
+        return nodes
+
+    def solve(self, t: np.ndarray) -> SpatialSolution:
+        t = np.asarray(t, dtype=float)
+        if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) < 0):
+            raise MechanismError("time", "instants must be finite and nondecreasing")
+        pose0, found = self.assemble(float(t[0]))
+        nodes = self._march(pose0, found, float(t[0]), float(t[-1]))
+        node_t = np.array([n.t[0] for n in nodes])
+        columns = ["t"] + self.system.motion_columns() + self.system.reaction_columns()
+        table = np.empty((len(columns), len(t)))
+        undetermined = np.zeros(len(columns), dtype=bool)
+        condition = np.empty(len(t))
+        resultants = np.empty((6 * len(self.system.bodies) if found.redundant else 0, len(t)))
+        parts = [slice(s, s + CHUNK) for s in range(0, len(t), CHUNK)]
+
+        def batch(part: slice) -> np.ndarray:
+            tt = t[part]
+            which = np.clip(np.searchsorted(node_t, tt, side="right") - 1, 0, len(nodes) - 1)
+            predicted = Pose(np.empty((len(tt), len(self.c.bodies), 3)), np.empty((len(tt), len(self.c.bodies), 3, 3)))
+            for k in np.unique(which):
+                mask = which == k
+                guess = predict(nodes[k], tt[mask])
+                predicted.G[mask], predicted.A[mask] = guess.G, guess.A
+            pose = newton(self.c, self.scaling, predicted, tt, found.independent, where="batch")
+            jump = self.scaling.step(flat_difference(pose, predicted))
+            if jump.max() > BRANCH_JUMP:
+                k = int(np.argmax(jump))
+                raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
+                                             "the continuation's prediction: a branch point or near-singular position")
+            state = rates(self.c, self.forces, pose, tt, found.independent)
+            Js = self.scaling.jacobian(state.jac)[:, list(found.independent)]
+            condition[part] = np.linalg.cond(Js)
+            table[0, part] = tt
+            table[1:, part] = self._columns(state)
+            if found.redundant:    # −Φqᵀ·λ per body: unique however λ is split
+                resultants[:, part] = -np.einsum("nrk,nr->kn", state.jac, state.lam)
+            return self._undetermined(state, found) if found.redundant else np.zeros(len(columns) - 1, dtype=bool)
+
+        pool = ThreadPoolExecutor(max_workers=min(len(parts), os.cpu_count() or 1))
+        try:
+            for flags in pool.map(batch, parts):
+                undetermined[1:] |= flags
+        finally:
+            pool.shutdown(cancel_futures=True)
+        if condition.max() > SINGULAR_CONDITION:
+            k = int(np.argmax(condition))
+            raise MechanismError("time", f"the Jacobian is singular at t = {t[k]:.6g} s (condition "
+                                         f"{condition[k]:.3g} > {SINGULAR_CONDITION:.0e})")
+        frame = pd.DataFrame(table.T, columns=columns, copy=False)
+        missing = {}
+        for k in np.flatnonzero(undetermined):
+            frame[columns[k]] = np.nan
+            missing[columns[k]] = (f"not unique: {found.redundant} redundant constraint"
+                                   f"{'s' if found.redundant != 1 else ''} (Jacobian rank {found.rank} of "
+                                   f"{found.rows} rows) make this reaction statically indeterminate")
+        if found.redundant:
+            names = [f"{b.name}.{q}" for b in self.system.bodies for q in RESULTANT]
+            frame = frame.assign(**dict(zip(names, resultants)))
+        facts = {"method": METHOD, "grubler": found.grubler, "mobility": found.mobility, "rank": found.rank,
+                 "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
+                 "continuation_nodes": len(nodes)}
+        return SpatialSolution(frame, missing, found, facts)
+
+    # -- columns ------------------------------------------------------------------------------
+
+    def _columns(self, s: State) -> np.ndarray:
+        values = []
+        for k, body in enumerate(self.system.bodies):
+            A = s.pose.A[:, k]
+            arm = A @ np.asarray(body.com, dtype=float)       # G − O
+            om, al = s.w[:, k, 3:], s.dw[:, k, 3:]
+            origin = s.pose.G[:, k] - arm
+            v = s.w[:, k, :3] - np.cross(om, arm)
+            a = s.dw[:, k, :3] - np.cross(al, arm) - np.cross(om, np.cross(om, arm))
+            values += [*origin.T, *matrix_to_quaternion(A).T, *v.T, *om.T, *a.T, *al.T]
+        values += list(self.reactions(s, s.lam))
+        return np.array(values)
+
+    def reactions(self, s: State, lam: np.ndarray) -> np.ndarray:
+        """Raw reaction columns from multipliers `lam` (linear in them), (columns, N)."""
+        c, values = self.c, []
+        for j in self.system.joints:
+            rows = c.joint_rows[j.name]
+            bi, si, bj, sj = c.ends[j.name]
+            Pj = c.point(s.pose, None, bj, sj).value
+            body, sign = (bj, 1.0) if bj >= 0 else (bi, -1.0)
+            load = -np.einsum("nrk,nr->nk", s.jac[:, rows, 6 * body:6 * body + 6], lam[:, rows])
+            F, N = sign * load[:, :3], sign * load[:, 3:]
+            M = N - np.cross(Pj - s.pose.G[:, body], F)
+            values += [*F.T, *M.T]
+        values += [-lam[:, c.drive_rows[d.name]] for d in self.system.drives]
+        values += [np.asarray(tq.law.value(s.t), dtype=float) + 0 * s.t for tq in self.system.torques]
+        return np.array(values)
+
+    def _undetermined(self, s: State, found: Structure) -> np.ndarray:
+        """Per raw column (motion ones never): does a null vector of Φqᵀ reach it?"""
+        idx = list(found.independent)
+        dependent = [k for k in range(self.c.m) if k not in found.independent]
+        J = s.jac
+        coefficients = np.linalg.solve(np.swapaxes(J[:, idx], 1, 2), np.swapaxes(J[:, dependent], 1, 2))
+        flags = np.zeros(len(self.system.reaction_columns()), dtype=bool)
+        scale = np.array([1.0 if q.startswith("F") else 1 / self.scaling.size
+                          for j in self.system.joints for q in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")]
+                         + [1.0] * (len(flags) - 6 * len(self.system.joints)))
+        for col, k in enumerate(dependent):
+            null = np.zeros((len(s.t), self.c.m))
+            null[:, k] = 1.0
+            null[:, idx] = -coefficients[:, :, col]
+            reached = np.abs(self.reactions(s, null)) * scale[:, None]
+            flags |= (reached > UNIQUE_TOL * reached.max(axis=0, keepdims=True)).any(axis=1)
+        motion = len(self.system.motion_columns())
+        return np.concatenate([np.zeros(motion, dtype=bool), flags])
+
+
+def predict(node: State, t: np.ndarray) -> Pose:
+    """Second-order Taylor prediction from a solved node, rotations on the group."""
+    dt = (t - node.t[0])[:, None, None]
+    G = node.pose.G + node.w[:, :, :3] * dt + 0.5 * node.dw[:, :, :3] * dt * dt
+    A = exp_map(node.w[:, :, 3:] * dt + 0.5 * node.dw[:, :, 3:] * dt * dt) @ node.pose.A
+    return Pose(G, A)
+
+
+def flat_difference(a: Pose, b: Pose) -> np.ndarray:
+    """(δG, δπ) from b to a per instant, (N, n): δπ the small rotation A_a·A_bᵀ."""
+    R = a.A @ np.swapaxes(b.A, -1, -2)
+    dpi = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    return np.concatenate([a.G - b.G, dpi], axis=-1).reshape(len(a), -1)
+
+
+def solve_spatial(system: SpatialSystem, t: np.ndarray) -> SpatialSolution:
+    return SpatialSolver(system).solve(t)

@@ -73,8 +73,8 @@ class Vec:
         parts = dict(self.parts)
         for b, block in other.parts.items():
             parts[b] = parts[b] - block if b in parts else -block
-        rate = None if self.rate is None else self.rate - other.rate
-        bias = None if self.bias is None else self.bias - other.bias
+        rate = None if self.rate is None or other.rate is None else self.rate - other.rate
+        bias = None if self.bias is None or other.bias is None else self.bias - other.bias
         return Vec(self.value - other.value, parts, rate, bias)
 
 
@@ -113,7 +113,7 @@ class Constraints:
     def axis(self, pose: Pose, w: np.ndarray | None, body: int, h_body: np.ndarray) -> Vec:
         N = len(pose)
         if body < 0:
-            zero = np.zeros((N, 3))
+            zero = None if w is None else np.zeros((N, 3))
             return Vec(np.broadcast_to(h_body, (N, 3)), {}, zero, zero)
         h = pose.A[:, body] @ h_body
         block = np.zeros((N, 3, 6))
@@ -127,7 +127,7 @@ class Constraints:
     def point(self, pose: Pose, w: np.ndarray | None, body: int, s: np.ndarray) -> Vec:
         N = len(pose)
         if body < 0:
-            zero = np.zeros((N, 3))
+            zero = None if w is None else np.zeros((N, 3))
             return Vec(np.broadcast_to(s, (N, 3)), {}, zero, zero)
         a = pose.A[:, body] @ s
         block = np.zeros((N, 3, 6))

@@ -59,6 +59,8 @@ class SpatialSolution:
     missing: Mapping[str, str]
     structure: Structure
     facts: Mapping[str, Any] = field(default_factory=dict)
+    #: Per instant, the condition number of the scaled square Jacobian.
+    condition: np.ndarray | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -188,6 +190,20 @@ class SpatialSolver:
             k = int(np.argmax(condition))
             raise MechanismError("time", f"the Jacobian is singular at t = {t[k]:.6g} s (condition "
                                          f"{condition[k]:.3g} > {SINGULAR_CONDITION:.0e})")
+        frame, missing = self.finish(table, undetermined, found, resultants)
+        facts = {"method": METHOD, "grubler": found.grubler, "mobility": found.mobility, "rank": found.rank,
+                 "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
+                 "continuation_nodes": len(nodes)}
+        return SpatialSolution(frame, missing, found, facts, condition)
+
+    # -- columns ------------------------------------------------------------------------------
+
+    def finish(self, table: np.ndarray, undetermined: np.ndarray, found: Structure,
+               resultants: np.ndarray) -> tuple[pd.DataFrame, dict[str, str]]:
+        """The raw frame from a table of columns: reactions that are not
+        unique blanked with their reason, resultants added where rows are
+        redundant."""
+        columns = ["t"] + self.system.motion_columns() + self.system.reaction_columns()
         frame = pd.DataFrame(table.T, columns=columns, copy=False)
         missing = {}
         for k in np.flatnonzero(undetermined):
@@ -198,12 +214,15 @@ class SpatialSolver:
         if found.redundant:
             names = [f"{b.name}.{q}" for b in self.system.bodies for q in RESULTANT]
             frame = frame.assign(**dict(zip(names, resultants)))
-        facts = {"method": METHOD, "grubler": found.grubler, "mobility": found.mobility, "rank": found.rank,
-                 "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
-                 "continuation_nodes": len(nodes)}
-        return SpatialSolution(frame, missing, found, facts)
+        return frame, missing
 
-    # -- columns ------------------------------------------------------------------------------
+    def frame_of(self, s: State, found: Structure) -> tuple[pd.DataFrame, dict[str, str]]:
+        """`finish` for one state (the dynamics' outputs)."""
+        table = np.concatenate([s.t[None], self._columns(s)])
+        flags = np.zeros(len(table), dtype=bool)
+        if found.redundant:
+            flags[1:] = self._undetermined(s, found)
+        return self.finish(table, flags, found, -np.einsum("nrk,nr->kn", s.jac, s.lam))
 
     def _columns(self, s: State) -> np.ndarray:
         values = []

@@ -90,6 +90,8 @@ def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tu
     once; without, one instant by least squares on all rows (the
     minimum-norm step: assembly, redundant or not). Raises MechanismError
     where it does not settle or the loop does not close."""
+    if not c.m:      # free bodies: nothing to close
+        return pose
     previous = np.full(len(pose), np.inf)
     done = np.zeros(len(pose), dtype=bool)
     for _ in range(NEWTON_ITERATIONS):

@@ -25,7 +25,7 @@ from scipy.integrate import solve_ivp
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_matrix, world_inertia
 from mechval.reference.spatial.joints import Pose
-from mechval.reference.spatial.rotation import matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
+from mechval.reference.spatial.rotation import cross, matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
 from mechval.reference.spatial.solver import SpatialSolution, SpatialSolver, State
 from mechval.reference.spatial.structure import initial_pose, newton, structure
 from mechval.reference.spatial.system import SpatialSystem
@@ -54,7 +54,7 @@ def momentum(system: SpatialSystem, pose: Pose, w: np.ndarray) -> tuple[np.ndarr
     for k, b in enumerate(system.bodies):
         p = b.mass * w[:, k, :3]
         linear += p
-        angular += np.cross(pose.G[:, k], p) + np.einsum("nij,nj->ni", J[:, k], w[:, k, 3:])
+        angular += cross(pose.G[:, k], p) + np.einsum("nij,nj->ni", J[:, k], w[:, k, 3:])
     return linear, angular
 
 
@@ -76,7 +76,7 @@ class SpatialDynamics:
         for k, b in enumerate(system.bodies):
             v, om = (np.asarray(x, dtype=float) for x in (velocities or {}).get(b.name, ((0, 0, 0), (0, 0, 0))))
             w[0, k, 3:] = om
-            w[0, k, :3] = v + np.cross(om, pose.A[0, k] @ np.asarray(b.com, dtype=float))
+            w[0, k, :3] = v + cross(om, pose.A[0, k] @ np.asarray(b.com, dtype=float))
         # the nearest consistent velocities: w − Jᵀ(J·Jᵀ)⁻¹(J·w − rhs)
         out = c.evaluate(pose, np.array([t0]), w)
         J = out["jac"][0, self.rows]

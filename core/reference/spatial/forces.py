@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mechval.reference.spatial.rotation import cross
 from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.system import SpatialSystem
 
@@ -49,7 +50,7 @@ class AppliedForces:
         if body < 0:
             return
         Q[:, 6 * body:6 * body + 3] += force
-        Q[:, 6 * body + 3:6 * body + 6] += np.cross(P - pose.G[:, body], force)
+        Q[:, 6 * body + 3:6 * body + 6] += cross(P - pose.G[:, body], force)
 
     def _couple(self, Q, body: int, torque) -> None:
         if body >= 0:
@@ -64,7 +65,7 @@ class AppliedForces:
         for k, b in enumerate(system.bodies):
             om = w[:, k, 3:]
             Q[:, 6 * k:6 * k + 3] += b.mass * g
-            Q[:, 6 * k + 3:6 * k + 6] -= np.cross(om, np.einsum("nij,nj->ni", J[:, k], om))
+            Q[:, 6 * k + 3:6 * k + 6] -= cross(om, np.einsum("nij,nj->ni", J[:, k], om))
         for load in system.loads:
             k = c.index[load.body]
             Q[:, 6 * k:6 * k + 3] += np.asarray(load.force, dtype=float)
@@ -95,7 +96,7 @@ class AppliedForces:
             return
         Pi, Pj = c.point(pose, w, bi, si), c.point(pose, w, bj, sj)
         # ṡ = d/dt (zi·d) = żi·d + zi·ḋ
-        z_rate = np.cross(omega(bi), z) if bi >= 0 else 0.0 * z
+        z_rate = cross(omega(bi), z) if bi >= 0 else 0.0 * z
         d = Pj.value - Pi.value
         rate = np.einsum("ni,ni->n", z_rate, d) + np.einsum("ni,ni->n", z, Pj.rate - Pi.rate)
         force = -j.damping * rate[:, None] * z

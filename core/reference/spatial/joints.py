@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mechval.model.mechanism import GROUND
-from mechval.reference.spatial.rotation import skew
+from mechval.reference.spatial.rotation import cross, skew
 from mechval.reference.spatial.system import SpatialSystem
 
 ROW_NAMES = {
@@ -78,6 +78,31 @@ class Vec:
         return Vec(self.value - other.value, parts, rate, bias)
 
 
+class Axes:
+    """The three axes of a joint frame on one body, each computed on first use."""
+
+    def __init__(self, c: "Constraints", pose, w, body: int, frame: np.ndarray):
+        self.args, self.frame, self.cache = (pose, w, body), frame, {}
+        self.c = c
+
+    def __getitem__(self, k: int) -> Vec:
+        if k not in self.cache:
+            pose, w, body = self.args
+            self.cache[k] = self.c.axis(pose, w, body, self.frame[:, k])
+        return self.cache[k]
+
+    def lazy(self, k: int) -> "Lazy":
+        return Lazy(self, k)
+
+
+class Lazy:
+    def __init__(self, axes: Axes, k: int):
+        self.axes, self.k = axes, k
+
+    def get(self) -> Vec:
+        return self.axes[self.k]
+
+
 def _dot(x, y):
     return np.einsum("ni,ni->n", x, y)
 
@@ -121,8 +146,8 @@ class Constraints:
         if w is None:
             return Vec(h, {body: block})
         om = w[:, body, 3:]
-        rate = np.cross(om, h)
-        return Vec(h, {body: block}, rate, np.cross(om, rate))
+        rate = cross(om, h)
+        return Vec(h, {body: block}, rate, cross(om, rate))
 
     def point(self, pose: Pose, w: np.ndarray | None, body: int, s: np.ndarray) -> Vec:
         N = len(pose)
@@ -136,8 +161,8 @@ class Constraints:
         if w is None:
             return Vec(pose.G[:, body] + a, {body: block})
         om = w[:, body, 3:]
-        turn = np.cross(om, a)
-        return Vec(pose.G[:, body] + a, {body: block}, w[:, body, :3] + turn, np.cross(om, turn))
+        turn = cross(om, a)
+        return Vec(pose.G[:, body] + a, {body: block}, w[:, body, :3] + turn, cross(om, turn))
 
     # -- rows -----------------------------------------------------------------------------------
 
@@ -174,18 +199,17 @@ class Constraints:
                 gamma = -(_dot(x.bias, y.value) + 2 * _dot(x.rate, y.rate) + _dot(x.value, y.bias))
             return value, parts, gamma
 
-        def scalar(x: Vec, y: Vec):
-            put(next(rows), *dot(x, y))
+        def scalar(x: Lazy, y: Lazy):
+            put(next(rows), *dot(x.get(), y.get()))
 
         frames = {}
         for j in self.system.joints:
             bi, si, bj, sj = self.ends[j.name]
-            ax_i = [self.axis(pose, w, bi, j.frame_i[:, k]) for k in range(3)]
-            ax_j = [self.axis(pose, w, bj, j.frame_j[:, k]) for k in range(3)]
+            ax_i, ax_j = Axes(self, pose, w, bi, j.frame_i), Axes(self, pose, w, bj, j.frame_j)
             d = self.point(pose, w, bj, sj) - self.point(pose, w, bi, si)
             frames[j.name] = (ax_i, ax_j, d)
-            xi, yi, zi = ax_i
-            xj, yj, zj = ax_j
+            xi, yi, zi = (ax_i.lazy(k) for k in range(3))
+            xj, yj, zj = (ax_j.lazy(k) for k in range(3))
             if j.kind in ("spherical", "revolute", "universal", "fixed"):
                 vector(d)
             if j.kind == "universal":

@@ -35,7 +35,7 @@ import pandas as pd
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_matrix
 from mechval.reference.spatial.joints import Constraints, Pose
-from mechval.reference.spatial.rotation import exp_map, matrix_to_quaternion
+from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
 from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, moved, newton, structure
 from mechval.reference.spatial.system import SpatialSystem
 
@@ -44,7 +44,7 @@ CHUNK = 1 << 12
 UNIQUE_TOL = 1e-8
 #: Continuation: a node's prediction may miss its solution by this much
 #: (scaled) before the step is halved; below a tenth of it, the step grows.
-NODE_JUMP = 1e-3
+NODE_JUMP = 5e-3
 #: A batch instant further than this (scaled) from its prediction may
 #: have left the branch.
 BRANCH_JUMP = 1e-2
@@ -81,10 +81,10 @@ def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows
     each by one square solve with the independent rows (`extra`: Q on top
     of the applied forces, for the dynamics' callers)."""
     idx = list(rows)
-    out = c.evaluate(pose, t)
-    J = out["jac"][:, idx]
     nb = len(c.bodies)
-    rhs = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))["rhs"][:, idx]
+    out = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))     # Φq and −Φt (γ is not needed at rest)
+    J = out["jac"][:, idx]
+    rhs = out["rhs"][:, idx]
     w = np.linalg.solve(J, rhs[..., None])[..., 0].reshape(len(t), nb, 6)
     gamma = c.evaluate(pose, t, w)["gamma"][:, idx]
     dw = np.linalg.solve(J, gamma[..., None])[..., 0]
@@ -231,8 +231,8 @@ class SpatialSolver:
             arm = A @ np.asarray(body.com, dtype=float)       # G − O
             om, al = s.w[:, k, 3:], s.dw[:, k, 3:]
             origin = s.pose.G[:, k] - arm
-            v = s.w[:, k, :3] - np.cross(om, arm)
-            a = s.dw[:, k, :3] - np.cross(al, arm) - np.cross(om, np.cross(om, arm))
+            v = s.w[:, k, :3] - cross(om, arm)
+            a = s.dw[:, k, :3] - cross(al, arm) - cross(om, cross(om, arm))
             values += [*origin.T, *matrix_to_quaternion(A).T, *v.T, *om.T, *a.T, *al.T]
         values += list(self.reactions(s, s.lam))
         return np.array(values)
@@ -247,7 +247,7 @@ class SpatialSolver:
             body, sign = (bj, 1.0) if bj >= 0 else (bi, -1.0)
             load = -np.einsum("nrk,nr->nk", s.jac[:, rows, 6 * body:6 * body + 6], lam[:, rows])
             F, N = sign * load[:, :3], sign * load[:, 3:]
-            M = N - np.cross(Pj - s.pose.G[:, body], F)
+            M = N - cross(Pj - s.pose.G[:, body], F)
             values += [*F.T, *M.T]
         values += [-lam[:, c.drive_rows[d.name]] for d in self.system.drives]
         values += [np.asarray(tq.law.value(s.t), dtype=float) + 0 * s.t for tq in self.system.torques]

@@ -199,8 +199,8 @@ class Constraints:
                 gamma = -(_dot(x.bias, y.value) + 2 * _dot(x.rate, y.rate) + _dot(x.value, y.bias))
             return value, parts, gamma
 
-        def scalar(x: Lazy, y: Lazy):
-            put(next(rows), *dot(x.get(), y.get()))
+        def scalar(x: Lazy | Vec, y: Lazy | Vec):
+            put(next(rows), *dot(*(v.get() if isinstance(v, Lazy) else v for v in (x, y))))
 
         frames = {}
         for j in self.system.joints:

@@ -133,9 +133,16 @@ class SpatialSolver:
             step = min(h, t_end - last.t[0])
             t = last.t + step
             predicted = predict(last, t)
-            solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation")
+            shortest = step <= 1e-9 * max(1.0, abs(t_end - t0))
+            try:
+                solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation")
+            except MechanismError:
+                if shortest:
+                    raise
+                h = step / 4
+                continue
             jump = self.scaling.step(flat_difference(solved, predicted))[0]
-            if jump > NODE_JUMP and step > 1e-9 * max(1.0, abs(t_end - t0)):
+            if jump > NODE_JUMP and not shortest:
                 h = step / 2
                 continue
             nodes.append(rates(self.c, self.forces, solved, t, rows))
@@ -237,8 +244,10 @@ class SpatialSolver:
         values += list(self.reactions(s, s.lam))
         return np.array(values)
 
-    def reactions(self, s: State, lam: np.ndarray) -> np.ndarray:
-        """Raw reaction columns from multipliers `lam` (linear in them), (columns, N)."""
+    def reactions(self, s: State, lam: np.ndarray, applied: bool = True) -> np.ndarray:
+        """Raw reaction columns from multipliers `lam`, (columns, N): linear
+        in them but for the joint torques' applied values (zeros unless
+        `applied`)."""
         c, values = self.c, []
         for j in self.system.joints:
             rows = c.joint_rows[j.name]
@@ -250,7 +259,8 @@ class SpatialSolver:
             M = N - cross(Pj - s.pose.G[:, body], F)
             values += [*F.T, *M.T]
         values += [-lam[:, c.drive_rows[d.name]] for d in self.system.drives]
-        values += [np.asarray(tq.law.value(s.t), dtype=float) + 0 * s.t for tq in self.system.torques]
+        values += [np.asarray(tq.law.value(s.t), dtype=float) + 0 * s.t if applied else 0 * s.t
+                   for tq in self.system.torques]
         return np.array(values)
 
     def _undetermined(self, s: State, found: Structure) -> np.ndarray:
@@ -258,7 +268,9 @@ class SpatialSolver:
         idx = list(found.independent)
         dependent = [k for k in range(self.c.m) if k not in found.independent]
         J = s.jac
-        coefficients = np.linalg.solve(np.swapaxes(J[:, idx], 1, 2), np.swapaxes(J[:, dependent], 1, 2))
+        # each dependent row as a combination of the kept ones (least squares:
+        # the dynamics keep fewer rows than coordinates)
+        coefficients = np.linalg.pinv(np.swapaxes(J[:, idx], 1, 2)) @ np.swapaxes(J[:, dependent], 1, 2)
         flags = np.zeros(len(self.system.reaction_columns()), dtype=bool)
         scale = np.array([1.0 if q.startswith("F") else 1 / self.scaling.size
                           for j in self.system.joints for q in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")]
@@ -267,7 +279,7 @@ class SpatialSolver:
             null = np.zeros((len(s.t), self.c.m))
             null[:, k] = 1.0
             null[:, idx] = -coefficients[:, :, col]
-            reached = np.abs(self.reactions(s, null)) * scale[:, None]
+            reached = np.abs(self.reactions(s, null, applied=False)) * scale[:, None]
             flags |= (reached > UNIQUE_TOL * reached.max(axis=0, keepdims=True)).any(axis=1)
         motion = len(self.system.motion_columns())
         return np.concatenate([np.zeros(motion, dtype=bool), flags])

@@ -113,7 +113,7 @@ class SpatialSolver:
         if found.mobility != drives or len(found.independent) != self.c.n:
             raise MechanismError("drive", f"the mobility is {found.mobility} (rank of the joints' Jacobian, "
                                           f"Grübler–Kutzbach {found.grubler}) but {drives} drive"
-                                          f"{'s' if drives != 1 else ''} prescribe the motion"
+                                          f"{'s prescribe' if drives != 1 else ' prescribes'} the motion"
                                           + ("" if found.mobility != drives else ": the drives are dependent"))
         angles = self.c.drive_angles(pose)
         for d in self.system.drives:

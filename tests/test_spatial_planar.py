@@ -72,6 +72,13 @@ def pairs(mech, planar, spatial):
 
 
 def assert_agree(mech, planar, spatial) -> None:
+    worst = worst_errors(mech, planar, spatial)
+    bad = {k: v for k, v in worst.items() if v > AGREE}
+    assert not bad, f"errors over the class peak: {bad}"
+
+
+def worst_errors(mech, planar, spatial) -> dict[str, float]:
+    """Per quantity class, the largest difference over the class's peak."""
     peaks: dict[str, float] = {}
     rows = [(kind, np.asarray(p, float), np.asarray(s, float)) for kind, p, s in pairs(mech, planar, spatial)]
     for kind, p, _ in rows:
@@ -83,8 +90,7 @@ def assert_agree(mech, planar, spatial) -> None:
         assert np.array_equal(finite, np.isfinite(s)), f"{kind}: the references disagree on which values exist"
         error = float(np.abs(p[finite] - s[finite]).max(initial=0.0))
         worst[kind] = max(worst.get(kind, 0.0), error / max(peaks.get(kind, 0.0), 1e-300))
-    bad = {k: v for k, v in worst.items() if v > AGREE}
-    assert not bad, f"errors over the class peak: {bad}"
+    return worst
 
 
 PRESCRIBED = [n for n in builtin_names() if not load(n).forward_dynamics]

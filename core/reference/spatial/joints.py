@@ -166,18 +166,21 @@ class Constraints:
 
     # -- rows -----------------------------------------------------------------------------------
 
-    def evaluate(self, pose: Pose, t: np.ndarray, w: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Φ (N, m) and Φq (N, m, n); with velocities w (N, nb, 6) also
-        −Φt and γ (N, m) and the rates Φq·w (N, m)."""
+    def evaluate(self, pose: Pose, t: np.ndarray, w: np.ndarray | None = None,
+                 jacobian: bool = True) -> dict[str, np.ndarray]:
+        """Φ (N, m) and Φq (N, m, n) (unless not `jacobian`); with
+        velocities w (N, nb, 6) also −Φt and γ (N, m)."""
         N, m = len(pose), self.m
-        out = dict(phi=np.zeros((N, m)), jac=np.zeros((N, m, self.n)))
+        out = dict(phi=np.zeros((N, m)))
+        if jacobian:
+            out["jac"] = np.zeros((N, m, self.n))
         if w is not None:
             out.update(rhs=np.zeros((N, m)), gamma=np.zeros((N, m)))
         rows = iter(range(m))
 
         def put(row: int, value, parts, gamma=None):
             out["phi"][:, row] = value
-            for b, block in parts.items():
+            for b, block in parts.items() if jacobian else ():
                 out["jac"][:, row, 6 * b:6 * b + 6] += block
             if w is not None:
                 out["gamma"][:, row] = gamma

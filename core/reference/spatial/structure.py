@@ -80,7 +80,13 @@ def moved(pose: Pose, dq: np.ndarray) -> Pose:
 
 
 def settled(size: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    return (size <= ROUNDING) | ((size >= 0.5 * previous) & (size <= STAGNATION))
+    """The iterate is at its fixed point after this step: the step was
+    within rounding, or stagnated at the noise floor, or Newton's
+    quadratic rate (next step ≈ size³/previous²) puts the next one a tenth
+    below rounding: the step just taken was the last that counts."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        quadratic = size ** 3 / previous ** 2 <= 0.1 * ROUNDING
+    return (size <= ROUNDING) | ((size >= 0.5 * previous) & (size <= STAGNATION)) | (quadratic & (size < previous) & np.isfinite(previous))
 
 
 def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tuple[int, ...] | None,
@@ -110,7 +116,7 @@ def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tu
         if done.all():
             break
         previous = size
-    residual = np.abs(c.evaluate(pose, t)["phi"] * scaling.row).max(axis=1) if c.m else np.zeros(len(pose))
+    residual = np.abs(c.evaluate(pose, t, jacobian=False)["phi"] * scaling.row).max(axis=1)
     if not done.all() or residual.max() > CLOSED:
         k = int(np.argmax(np.where(done, residual, np.inf)))
         raise MechanismError("joint" if where == "assembly" else "time",

@@ -54,12 +54,12 @@ def test_bennett_closed_form_closes_the_loop():
 
 
 def test_bennett_linkage_moves_with_one_degree_of_freedom():
-    """Grübler–Kutzbach says −2; the rank says 1 (3 redundant rows). The
-    sweep stops short of θ1 = π, where the linkage folds (θ2 = 0) and the
-    rows kept at the assembly become singular (condition 1e4 at 1e-3 rad
-    from it: the square solve's row choice is not yet revised en route)."""
+    """Grübler–Kutzbach says −2; the rank says 1 (3 redundant rows). A
+    full turn of θ1, through the fold at θ1 = π (θ2 = 0) where the rows
+    kept at the assembly turn singular though the whole Jacobian does not:
+    the solver picks other rows there (`REPICK_CONDITION`)."""
     m = Bennett()
-    t = np.linspace(0.0, 2.0, 401)
+    t = np.sort(np.append(np.linspace(0.0, 2 * np.pi, 801), np.pi - m.theta1_0))    # the fold itself
     sol = SpatialSolver(m.system).solve(t)
     assert (sol.facts["grubler"], sol.facts["mobility"], sol.facts["redundant_constraints"]) == (-2, 1, 3)
     pose, _, _ = body_state(m.system, sol.frame)

@@ -141,5 +141,5 @@ def test_dynamic_planar_builtin_has_the_same_equations_of_motion(name):
     pose, w = Pose(np.stack(G, 1), np.stack(A, 1)), np.stack(w, 1)
     dw, lam = dynamics.accelerations(pose, w, t)
     jac = dynamics.c.evaluate(pose, t)["jac"]
-    frame, _ = dynamics.solver.frame_of(State(t, pose, w, dw, lam, jac), dynamics.found)
+    frame, _ = dynamics.solver.frame_of(State(t, pose, w, dw, lam, jac, tuple(dynamics.rows)), dynamics.found)
     assert_agree(mech, planar, frame)

@@ -136,7 +136,7 @@ class SpatialDynamics:
         drift_q = np.abs(out["phi"] * scaling.row).max(initial=0.0)
         rates = np.einsum("nrk,nk->nr", out["jac"], w.reshape(len(t), -1)) - out["rhs"]
         drift_v = np.abs(rates * scaling.row).max(initial=0.0)
-        state = State(t, pose, w, dw, lam, out["jac"])
+        state = State(t, pose, w, dw, lam, out["jac"], tuple(self.rows))
         frame, missing = self.solver.frame_of(state, self.found)
         E = energy(self.system, pose, w)
         facts = {"method": METHOD, "rtol": rtol, "atol": atol, "steps": int(run.t.size),

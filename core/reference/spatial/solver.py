@@ -36,7 +36,7 @@ from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_matrix
 from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
-from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, moved, newton, structure
+from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, moved, newton, structure
 from mechval.reference.spatial.system import SpatialSystem
 
 CHUNK = 1 << 12
@@ -49,6 +49,10 @@ NODE_JUMP = 5e-3
 #: have left the branch.
 BRANCH_JUMP = 1e-2
 SINGULAR_CONDITION = 1e10
+#: A node where the kept rows' scaled Jacobian is worse conditioned than
+#: this gets its rows picked afresh (the full Jacobian may be well
+#: conditioned there: Bennett's linkage folding at θ1 = π).
+REPICK_CONDITION = 1e3
 METHOD = "absolute coordinates, rotations on the group, Newton continuation, multipliers (Nikravesh 1988, Haug 1989)"
 RESULTANT = ("R.Fx", "R.Fy", "R.Fz", "R.Mx", "R.My", "R.Mz")
 
@@ -73,6 +77,8 @@ class State:
     dw: np.ndarray
     lam: np.ndarray
     jac: np.ndarray
+    #: The rows its square solves kept.
+    rows: tuple[int, ...] = ()
 
 
 def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
@@ -93,7 +99,7 @@ def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows
     lam_kept = np.linalg.solve(np.swapaxes(J, 1, 2), (Q - np.einsum("nij,nj->ni", M, dw))[..., None])[..., 0]
     lam = np.zeros((len(t), c.m))
     lam[:, idx] = lam_kept
-    return State(t, pose, w, dw.reshape(len(t), nb, 6), lam, out["jac"])
+    return State(t, pose, w, dw.reshape(len(t), nb, 6), lam, out["jac"], tuple(rows))
 
 
 class SpatialSolver:
@@ -135,6 +141,7 @@ class SpatialSolver:
             predicted = predict(last, t)
             shortest = step <= 1e-9 * max(1.0, abs(t_end - t0))
             try:
+                rows = self.rows_at(predicted, t, last.rows, found)[0]
                 solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation")
             except MechanismError:
                 if shortest:
@@ -165,27 +172,42 @@ class SpatialSolver:
         parts = [slice(s, s + CHUNK) for s in range(0, len(t), CHUNK)]
 
         def batch(part: slice) -> np.ndarray:
+            flags = np.zeros(len(columns) - 1, dtype=bool)
             tt = t[part]
             which = np.clip(np.searchsorted(node_t, tt, side="right") - 1, 0, len(nodes) - 1)
+            sets = {nodes[k].rows for k in np.unique(which)}
+            for rows in sets:         # the instants whose nodes kept the same rows
+                mask = np.array([nodes[k].rows == rows for k in which])
+                flags |= group(np.arange(part.start, part.start + len(tt))[mask], which[mask], rows)
+            return flags
+
+        def group(index: np.ndarray, which: np.ndarray, rows: tuple[int, ...]) -> np.ndarray:
+            tt = t[index]
             predicted = Pose(np.empty((len(tt), len(self.c.bodies), 3)), np.empty((len(tt), len(self.c.bodies), 3, 3)))
             for k in np.unique(which):
                 mask = which == k
                 guess = predict(nodes[k], tt[mask])
                 predicted.G[mask], predicted.A[mask] = guess.G, guess.A
-            pose = newton(self.c, self.scaling, predicted, tt, found.independent, where="batch")
+            better, poor = self.rows_at(predicted, tt, rows, found)
+            if better != rows:     # near a pose where these rows turn singular: the poor instants get others
+                flags = group(index[poor], which[poor], better)
+                if poor.all():
+                    return flags
+                keep = ~poor
+                return flags | group(index[keep], which[keep], rows)
+            pose = newton(self.c, self.scaling, predicted, tt, rows, where="batch")
             jump = self.scaling.step(flat_difference(pose, predicted))
             if jump.max() > BRANCH_JUMP:
                 k = int(np.argmax(jump))
                 raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
                                              "the continuation's prediction: a branch point or near-singular position")
-            state = rates(self.c, self.forces, pose, tt, found.independent)
-            Js = self.scaling.jacobian(state.jac)[:, list(found.independent)]
-            condition[part] = condition_1(Js)
-            table[0, part] = tt
-            table[1:, part] = self._columns(state)
+            state = rates(self.c, self.forces, pose, tt, rows)
+            condition[index] = condition_1(self.scaling.jacobian(state.jac)[:, list(rows)])
+            table[0, index] = tt
+            table[1:, index] = self._columns(state)
             if found.redundant:    # −Φqᵀ·λ per body: unique however λ is split
-                resultants[:, part] = -np.einsum("nrk,nr->kn", state.jac, state.lam)
-            return self._undetermined(state, found) if found.redundant else np.zeros(len(columns) - 1, dtype=bool)
+                resultants[:, index] = -np.einsum("nrk,nr->kn", state.jac, state.lam)
+            return self._undetermined(state) if found.redundant else np.zeros(len(columns) - 1, dtype=bool)
 
         pool = ThreadPoolExecutor(max_workers=min(len(parts), os.cpu_count() or 1))
         try:
@@ -202,6 +224,18 @@ class SpatialSolver:
                  "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
                  "continuation_nodes": len(nodes)}
         return SpatialSolution(frame, missing, found, facts, condition)
+
+    def rows_at(self, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
+                found: Structure) -> tuple[tuple[int, ...], np.ndarray]:
+        """Rows to keep near `pose`: `rows`, unless their scaled Jacobian's
+        condition exceeds REPICK_CONDITION at some instant, then rows
+        picked afresh at the first such instant; and which instants those are."""
+        J = self.scaling.jacobian(self.c.evaluate(pose, t)["jac"])
+        poor = condition_1(J[:, list(rows)]) > REPICK_CONDITION
+        if not poor.any():
+            return rows, poor
+        k = int(np.argmax(poor))
+        return kept_rows(self.c, J[k], self.c.n - found.mobility), poor
 
     # -- columns ------------------------------------------------------------------------------
 
@@ -228,7 +262,7 @@ class SpatialSolver:
         table = np.concatenate([s.t[None], self._columns(s)])
         flags = np.zeros(len(table), dtype=bool)
         if found.redundant:
-            flags[1:] = self._undetermined(s, found)
+            flags[1:] = self._undetermined(s)
         return self.finish(table, flags, found, -np.einsum("nrk,nr->kn", s.jac, s.lam))
 
     def _columns(self, s: State) -> np.ndarray:
@@ -263,10 +297,10 @@ class SpatialSolver:
                    for tq in self.system.torques]
         return np.array(values)
 
-    def _undetermined(self, s: State, found: Structure) -> np.ndarray:
+    def _undetermined(self, s: State) -> np.ndarray:
         """Per raw column (motion ones never): does a null vector of Φqᵀ reach it?"""
-        idx = list(found.independent)
-        dependent = [k for k in range(self.c.m) if k not in found.independent]
+        idx = list(s.rows)
+        dependent = [k for k in range(self.c.m) if k not in s.rows]
         J = s.jac
         # each dependent row as a combination of the kept ones (least squares:
         # the dynamics keep fewer rows than coordinates)

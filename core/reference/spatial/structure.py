@@ -125,6 +125,27 @@ def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tu
     return pose
 
 
+def _rank(M: np.ndarray) -> int:
+    if not M.size:
+        return 0
+    s = np.linalg.svd(M, compute_uv=False)
+    return int((s > RANK_TOL * s[0]).sum()) if s[0] > 0 else 0
+
+
+def kept_rows(c: Constraints, J: np.ndarray, joint_rank: int) -> tuple[int, ...]:
+    """The rows the square solves keep at a pose whose scaled Jacobian is
+    J: `joint_rank` joint rows by QR with column pivoting of their Φqᵀ
+    (the best-conditioned set, Golub & Van Loan 2013, §5.4.2), then each
+    drive row that adds to the rank."""
+    joint_rows = [k for k, r in enumerate(c.rows) if r.kind != "drive"]
+    _, _, order = qr(J[joint_rows].T, pivoting=True, mode="economic") if joint_rows else (None, None, [])
+    keep = sorted(joint_rows[k] for k in order[:joint_rank])
+    for k, r in enumerate(c.rows):
+        if r.kind == "drive" and _rank(J[keep + [k]]) > len(keep):
+            keep.append(k)
+    return tuple(keep)
+
+
 def structure(c: Constraints, scaling: Scaling, pose: Pose) -> Structure:
     """Rank of the joints' rows and of all rows at the assembled pose
     (one instant), and the independent rows: QR with column pivoting of
@@ -133,23 +154,14 @@ def structure(c: Constraints, scaling: Scaling, pose: Pose) -> Structure:
     J = scaling.jacobian(c.evaluate(pose, np.zeros(1))["jac"][0])
     joint_rows = [k for k, r in enumerate(c.rows) if r.kind != "drive"]
 
-    def rank(M: np.ndarray) -> int:
-        if not M.size:
-            return 0
-        s = np.linalg.svd(M, compute_uv=False)
-        return int((s > RANK_TOL * s[0]).sum()) if s[0] > 0 else 0
-
+    rank = _rank
     joint_rank = rank(J[joint_rows])
     total = rank(J)
-    _, _, order = qr(J[joint_rows].T, pivoting=True, mode="economic") if joint_rows else (None, None, [])
-    keep = sorted(joint_rows[k] for k in order[:joint_rank])
-    for k, r in enumerate(c.rows):      # drives after: each kept if it adds to the rank
-        if r.kind == "drive" and rank(J[keep + [k]]) > len(keep):
-            keep.append(k)
+    keep = kept_rows(c, J, joint_rank)
     n = c.n
     system = c.system
     constrained = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4, "prismatic": 5, "planar": 3,
                    "fixed": 6}
     grubler = 6 * len(system.bodies) - sum(constrained[j.kind] for j in system.joints)
     return Structure(grubler=grubler, mobility=n - joint_rank, rank=total, rows=c.m,
-                     redundant=len(joint_rows) - joint_rank, independent=tuple(keep))
+                     redundant=len(joint_rows) - joint_rank, independent=keep)

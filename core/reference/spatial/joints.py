@@ -81,14 +81,14 @@ class Vec:
 class Axes:
     """The three axes of a joint frame on one body, each computed on first use."""
 
-    def __init__(self, c: "Constraints", pose, w, body: int, frame: np.ndarray):
-        self.args, self.frame, self.cache = (pose, w, body), frame, {}
+    def __init__(self, c: "Constraints", pose, w, body: int, frame: np.ndarray, blocks: bool = True):
+        self.args, self.frame, self.cache, self.blocks = (pose, w, body), frame, {}, blocks
         self.c = c
 
     def __getitem__(self, k: int) -> Vec:
         if k not in self.cache:
             pose, w, body = self.args
-            self.cache[k] = self.c.axis(pose, w, body, self.frame[:, k])
+            self.cache[k] = self.c.axis(pose, w, body, self.frame[:, k], self.blocks)
         return self.cache[k]
 
     def lazy(self, k: int) -> "Lazy":
@@ -135,34 +135,39 @@ class Constraints:
 
     # -- body vectors ---------------------------------------------------------------------------
 
-    def axis(self, pose: Pose, w: np.ndarray | None, body: int, h_body: np.ndarray) -> Vec:
+    def axis(self, pose: Pose, w: np.ndarray | None, body: int, h_body: np.ndarray, blocks: bool = True) -> Vec:
         N = len(pose)
         if body < 0:
             zero = None if w is None else np.zeros((N, 3))
             return Vec(np.broadcast_to(h_body, (N, 3)), {}, zero, zero)
         h = pose.A[:, body] @ h_body
-        block = np.zeros((N, 3, 6))
-        block[:, :, 3:] = -skew(h)
+        if blocks:
+            block = np.zeros((N, 3, 6))
+            block[:, :, 3:] = -skew(h)
+        parts = {body: block} if blocks else {}
         if w is None:
-            return Vec(h, {body: block})
+            return Vec(h, parts)
         om = w[:, body, 3:]
         rate = cross(om, h)
-        return Vec(h, {body: block}, rate, cross(om, rate))
+        return Vec(h, parts, rate, cross(om, rate))
 
-    def point(self, pose: Pose, w: np.ndarray | None, body: int, s: np.ndarray) -> Vec:
+    def point(self, pose: Pose, w: np.ndarray | None, body: int, s: np.ndarray, blocks: bool = True) -> Vec:
         N = len(pose)
         if body < 0:
             zero = None if w is None else np.zeros((N, 3))
             return Vec(np.broadcast_to(s, (N, 3)), {}, zero, zero)
         a = pose.A[:, body] @ s
-        block = np.zeros((N, 3, 6))
-        block[:, :, :3] = np.eye(3)
-        block[:, :, 3:] = -skew(a)
+        parts = {}
+        if blocks:
+            block = np.zeros((N, 3, 6))
+            block[:, :, :3] = np.eye(3)
+            block[:, :, 3:] = -skew(a)
+            parts = {body: block}
         if w is None:
-            return Vec(pose.G[:, body] + a, {body: block})
+            return Vec(pose.G[:, body] + a, parts)
         om = w[:, body, 3:]
         turn = cross(om, a)
-        return Vec(pose.G[:, body] + a, {body: block}, w[:, body, :3] + turn, cross(om, turn))
+        return Vec(pose.G[:, body] + a, parts, w[:, body, :3] + turn, cross(om, turn))
 
     # -- rows -----------------------------------------------------------------------------------
 
@@ -208,8 +213,8 @@ class Constraints:
         frames = {}
         for j in self.system.joints:
             bi, si, bj, sj = self.ends[j.name]
-            ax_i, ax_j = Axes(self, pose, w, bi, j.frame_i), Axes(self, pose, w, bj, j.frame_j)
-            d = self.point(pose, w, bj, sj) - self.point(pose, w, bi, si)
+            ax_i, ax_j = Axes(self, pose, w, bi, j.frame_i, jacobian), Axes(self, pose, w, bj, j.frame_j, jacobian)
+            d = self.point(pose, w, bj, sj, jacobian) - self.point(pose, w, bi, si, jacobian)
             frames[j.name] = (ax_i, ax_j, d)
             xi, yi, zi = (ax_i.lazy(k) for k in range(3))
             xj, yj, zj = (ax_j.lazy(k) for k in range(3))

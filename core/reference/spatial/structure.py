@@ -28,6 +28,8 @@ RANK_TOL = 1e-9
 ROUNDING = 8 * np.finfo(float).eps
 STAGNATION = 1e-11
 NEWTON_ITERATIONS = 40
+#: Chord iterations between fresh Jacobians in a batch.
+CHORD = 8
 #: A closed loop's scaled residual (every row, redundant ones included).
 CLOSED = 1e-9
 
@@ -81,11 +83,12 @@ def moved(pose: Pose, dq: np.ndarray) -> Pose:
 
 def settled(size: np.ndarray, previous: np.ndarray) -> np.ndarray:
     """The iterate is at its fixed point after this step: the step was
-    within rounding, or stagnated at the noise floor, or Newton's
-    quadratic rate (next step ≈ size³/previous²) puts the next one a tenth
-    below rounding: the step just taken was the last that counts."""
+    within rounding, or stagnated at the noise floor, or the rate of
+    convergence puts the next step a tenth below rounding (at least the
+    linear rate's size²/previous; Newton's quadratic one is faster): the
+    step just taken was the last that counts."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        quadratic = size ** 3 / previous ** 2 <= 0.1 * ROUNDING
+        quadratic = size * size / previous <= 0.1 * ROUNDING
     return (size <= ROUNDING) | ((size >= 0.5 * previous) & (size <= STAGNATION)) | (quadratic & (size < previous) & np.isfinite(previous))
 
 
@@ -100,15 +103,23 @@ def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tu
         return pose
     previous = np.full(len(pose), np.inf)
     done = np.zeros(len(pose), dtype=bool)
-    for _ in range(NEWTON_ITERATIONS):
-        out = c.evaluate(pose, t)
+    inverse = None
+    for it in range(NEWTON_ITERATIONS):
+        # batches: chord iterations, the kept rows' Jacobian inverted at the
+        # first iterate and afresh every CHORD iterations (each further
+        # iteration evaluates Φ alone: cheaper than a Jacobian and a solve)
+        fresh = rows is None or it % CHORD == 0
+        out = c.evaluate(pose, t, jacobian=fresh)
         if rows is None:
             Js = scaling.jacobian(out["jac"][0])
             dq = -np.linalg.lstsq(Js, out["phi"][0] * scaling.row, rcond=None)[0] * scaling.column
             dq = dq[None]
         else:
             idx = list(rows)
-            dq = -np.linalg.solve(out["jac"][:, idx], out["phi"][:, idx, None])[..., 0]
+            if fresh:
+                inverse = np.linalg.inv(out["jac"][:, idx])
+                previous = np.full(len(pose), np.inf)      # the rate estimate starts over
+            dq = -np.einsum("nij,nj->ni", inverse, out["phi"][:, idx])
         size = scaling.step(dq)
         dq[done] = 0.0
         pose = moved(pose, dq)

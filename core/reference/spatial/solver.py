@@ -4,10 +4,14 @@ reactions and drive efforts of a spatial system at any instants.
 As the planar reference (`mechval.reference.planar.solver`): assemble at
 the first instant (`structure.newton`), follow the branch by continuation
 over nodes, then at every requested instant, in batches:
-- positions: Newton from the nearest earlier node's second-order Taylor
-  prediction (on the group for rotations), to the fixed point;
+- positions: chord Newton from the nearest earlier node's second-order
+  Taylor prediction (on the group for rotations), to the fixed point;
 - velocities Φq·w = −Φt, accelerations Φq·ẇ = γ, multipliers from
   M·ẇ + Φqᵀ·λ = Q (`forces`): square solves with the independent rows.
+The independent rows are those of the assembly (`structure.kept_rows`)
+until their condition passes REPICK_CONDITION near some pose, where
+others are picked: a set of rows can turn singular where the whole
+Jacobian does not (Bennett's linkage folding flat).
 
 Reactions from the multipliers (constraint loads are −Φqᵀ·λ, Nikravesh
 1988, ch. 11): a joint's rows give the load (force F, moment about the
@@ -344,4 +348,5 @@ def flat_difference(a: Pose, b: Pose) -> np.ndarray:
 
 
 def solve_spatial(system: SpatialSystem, t: np.ndarray) -> SpatialSolution:
+    """The spatial reference's raw columns of `system` at instants t."""
     return SpatialSolver(system).solve(t)

@@ -205,3 +205,46 @@ class HeavyTop:
     @property
     def velocities(self) -> dict:
         return {"top": ((0.0, 0.0, 0.0), tuple(self.omega0))}
+
+
+class Delta:
+    """A delta robot whose lower legs are single rods with a universal
+    joint at each end (3-RUU): the pins on arm and platform parallel to
+    the arm's axis u, the two on the rod parallel to each other (Tsai's
+    condition for a translating platform). Arms driven from the assembly's
+    angles; the platform's motion is the solver's."""
+
+    base, plate, arm, rod = 0.2, 0.05, 0.2, 0.45
+    start = np.array([0.02, -0.01, -0.35])
+    laws = (DriveLaw(0.0, 0.4, -0.3), DriveLaw(0.0, -0.2, 0.5), DriveLaw(0.0, 0.3, 0.2))
+    branch = -1
+
+    def __init__(self):
+        self.legs = np.radians([0.0, 120.0, 240.0])
+        self.theta0 = [float(closed.delta_arm_angle(self.start, self.base, self.plate, self.arm, self.rod, phi,
+                                                    self.branch)) for phi in self.legs]
+        bodies = [SpatialBody("platform", 0.3, tuple(self.start), inertia(60, 1e-4))]
+        joints = []
+        for k, (phi, th) in enumerate(zip(self.legs, self.theta0)):
+            e = np.array([np.cos(phi), np.sin(phi), 0.0])
+            u = np.cross([0.0, 0.0, 1.0], e)
+            A = self.base * e
+            B = A + self.arm * (np.cos(th) * e - np.sin(th) * np.array([0.0, 0.0, 1.0]))
+            C = self.start + self.plate * e
+            w = unit(np.cross(u, C - B))
+            bodies += [SpatialBody(f"arm{k}", 0.2, tuple((A + B) / 2), inertia(61 + k, 1e-4)),
+                       SpatialBody(f"rod{k}", 0.1, tuple((B + C) / 2), inertia(64 + k, 1e-4))]
+            joints += [revolute(f"R{k}", GROUND, f"arm{k}", A, u, e),
+                       SpatialJoint(f"E{k}", "universal", f"arm{k}", f"rod{k}", tuple(B), tuple(B),
+                                    frame_from_axis(u), frame_from_axis(w)),
+                       SpatialJoint(f"P{k}", "universal", f"rod{k}", "platform", tuple(C), tuple(C),
+                                    frame_from_axis(w), frame_from_axis(u))]
+        drives = tuple(SpatialDrive(f"R{k}", law, f"drive{k}") for k, law in enumerate(self.laws))
+        self.system = SpatialSystem("delta", tuple(bodies), tuple(joints), drives, GRAVITY)
+
+    def arm_angles(self, platform_origin) -> np.ndarray:
+        """The closed-form arm angles (N, 3) that put the platform frame's
+        origin (the platform's position relative to its start, plus start) there."""
+        p = np.asarray(platform_origin, dtype=float)
+        return np.stack([closed.delta_arm_angle(p, self.base, self.plate, self.arm, self.rod, phi, self.branch)
+                         for phi in self.legs], axis=-1)

@@ -125,3 +125,21 @@ def top_precession_rates(tilt: float, spin: float, mass: float, arm: float, grav
     a, b, c = transverse * np.cos(tilt), -axial * spin, mass * gravity * arm
     root = np.sqrt(b * b - 4 * a * c)
     return float((-b - root) / (2 * a)), float((-b + root) / (2 * a))
+
+
+def delta_arm_angle(platform, base_radius: float, platform_radius: float, arm: float, rod: float,
+                    leg_angle: float, branch: int = -1) -> np.ndarray:
+    """Inverse kinematics of one leg of a delta robot whose platform
+    translates: the arm angle θ (down from the horizontal) that puts the
+    elbow B = A + arm·(cos θ·e − sin θ·ẑ) at `rod` from the platform's
+    joint C = p + platform_radius·e, with A = base_radius·e and
+    e = (cos φ, sin φ, 0) the leg's radial direction. |B − C|² = rod²
+    expands, with D = C − A, to (e·D)·cos θ − D_z·sin θ =
+    (arm² + |D|² − rod²)/(2·arm) (Clavel's delta; e.g. Williams, "The
+    Delta Parallel Robot: Kinematics Solutions", 2016, and any text on it).
+    `platform` (..., 3); branch −1 is the elbow out."""
+    p = np.asarray(platform, dtype=float)
+    e = np.array([np.cos(leg_angle), np.sin(leg_angle), 0.0])
+    D = p + (platform_radius - base_radius) * e
+    C = (arm ** 2 + np.einsum("...i,...i->...", D, D) - rod ** 2) / (2 * arm)
+    return _cos_sin_equation(D @ e, -D[..., 2], C, branch)

@@ -38,6 +38,14 @@ def mass_matrix(system: SpatialSystem, pose: Pose) -> np.ndarray:
     return M
 
 
+def mass_times(system: SpatialSystem, pose: Pose, dw: np.ndarray) -> np.ndarray:
+    """M·ẇ without forming M: (m·G̈, J·ω̇) per body, (N, n)."""
+    J = world_inertia(system, pose)
+    mass = np.array([b.mass for b in system.bodies])
+    out = np.concatenate([mass[None, :, None] * dw[..., :3], np.einsum("nbij,nbj->nbi", J, dw[..., 3:])], axis=-1)
+    return out.reshape(len(pose), -1)
+
+
 class AppliedForces:
     """Q(q, q̇, t) of a system, (N, n), vectorised over instants."""
 

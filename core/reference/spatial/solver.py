@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from mechval.reference.planar.constraints import MechanismError
-from mechval.reference.spatial.forces import AppliedForces, mass_matrix
+from mechval.reference.spatial.forces import AppliedForces, mass_times
 from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
 from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, moved, newton, structure
@@ -81,29 +81,27 @@ class State:
     dw: np.ndarray
     lam: np.ndarray
     jac: np.ndarray
-    #: The rows its square solves kept.
+    #: The rows its square solves kept, and their Jacobian's inverse.
     rows: tuple[int, ...] = ()
+    inverse: np.ndarray | None = None
 
 
 def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
           extra: np.ndarray | None = None) -> State:
-    """Velocities, accelerations and multipliers at solved positions,
-    each by one square solve with the independent rows (`extra`: Q on top
-    of the applied forces, for the dynamics' callers)."""
+    """Velocities, accelerations and multipliers at solved positions by the
+    kept rows' Jacobian, inverted once for the three solves (and for its
+    condition); `extra`: Q on top of the applied forces."""
     idx = list(rows)
     nb = len(c.bodies)
     out = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))     # Φq and −Φt (γ is not needed at rest)
-    J = out["jac"][:, idx]
-    rhs = out["rhs"][:, idx]
-    w = np.linalg.solve(J, rhs[..., None])[..., 0].reshape(len(t), nb, 6)
-    gamma = c.evaluate(pose, t, w)["gamma"][:, idx]
-    dw = np.linalg.solve(J, gamma[..., None])[..., 0]
+    inverse = np.linalg.inv(out["jac"][:, idx])
+    w = np.einsum("nij,nj->ni", inverse, out["rhs"][:, idx]).reshape(len(t), nb, 6)
+    gamma = c.evaluate(pose, t, w, jacobian=False)["gamma"][:, idx]
+    dw = np.einsum("nij,nj->ni", inverse, gamma).reshape(len(t), nb, 6)
     Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
-    M = mass_matrix(c.system, pose)
-    lam_kept = np.linalg.solve(np.swapaxes(J, 1, 2), (Q - np.einsum("nij,nj->ni", M, dw))[..., None])[..., 0]
     lam = np.zeros((len(t), c.m))
-    lam[:, idx] = lam_kept
-    return State(t, pose, w, dw.reshape(len(t), nb, 6), lam, out["jac"], tuple(rows))
+    lam[:, idx] = np.einsum("nji,nj->ni", inverse, Q - mass_times(c.system, pose, dw))
+    return State(t, pose, w, dw, lam, out["jac"], tuple(rows), inverse)
 
 
 class SpatialSolver:
@@ -206,7 +204,9 @@ class SpatialSolver:
                 raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
                                              "the continuation's prediction: a branch point or near-singular position")
             state = rates(self.c, self.forces, pose, tt, rows)
-            condition[index] = condition_1(self.scaling.jacobian(state.jac)[:, list(rows)])
+            row, column = self.scaling.row[list(rows)], self.scaling.column
+            condition[index] = condition_1(state.jac[:, list(rows)] * row[:, None] * column,
+                                           state.inverse / column[:, None] / row)
             table[0, index] = tt
             table[1:, index] = self._columns(state)
             if found.redundant:    # −Φqᵀ·λ per body: unique however λ is split
@@ -324,12 +324,12 @@ class SpatialSolver:
         return np.concatenate([np.zeros(motion, dtype=bool), flags])
 
 
-def condition_1(J: np.ndarray) -> np.ndarray:
+def condition_1(J: np.ndarray, inverse: np.ndarray | None = None) -> np.ndarray:
     """‖J‖₁·‖J⁻¹‖₁ per instant: the 1-norm condition number, by one batched
-    LU inverse (an SVD per instant costs several times more); within a
-    factor n of the 2-norm one."""
+    LU inverse unless given (an SVD per instant costs several times more);
+    within a factor n of the 2-norm one."""
     norm = lambda M: np.abs(M).sum(axis=-2).max(axis=-1)     # noqa: E731
-    return norm(J) * norm(np.linalg.inv(J))
+    return norm(J) * norm(np.linalg.inv(J) if inverse is None else inverse)
 
 
 def predict(node: State, t: np.ndarray) -> Pose:

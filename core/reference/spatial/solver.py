@@ -143,8 +143,9 @@ class SpatialSolver:
             predicted = predict(last, t)
             shortest = step <= 1e-9 * max(1.0, abs(t_end - t0))
             try:
-                rows = self.rows_at(predicted, t, last.rows, found)[0]
-                solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation")
+                rows, _, inverse = self.rows_at(predicted, t, last.rows, found)
+                solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation",
+                                inverse=inverse if rows == last.rows else None)
             except MechanismError:
                 if shortest:
                     raise
@@ -190,14 +191,14 @@ class SpatialSolver:
                 mask = which == k
                 guess = predict(nodes[k], tt[mask])
                 predicted.G[mask], predicted.A[mask] = guess.G, guess.A
-            better, poor = self.rows_at(predicted, tt, rows, found)
+            better, poor, inverse = self.rows_at(predicted, tt, rows, found)
             if better != rows:     # near a pose where these rows turn singular: the poor instants get others
                 flags = group(index[poor], which[poor], better)
                 if poor.all():
                     return flags
                 keep = ~poor
                 return flags | group(index[keep], which[keep], rows)
-            pose = newton(self.c, self.scaling, predicted, tt, rows, where="batch")
+            pose = newton(self.c, self.scaling, predicted, tt, rows, where="batch", inverse=inverse)
             jump = self.scaling.step(flat_difference(pose, predicted))
             if jump.max() > BRANCH_JUMP:
                 k = int(np.argmax(jump))
@@ -230,16 +231,20 @@ class SpatialSolver:
         return SpatialSolution(frame, missing, found, facts, condition)
 
     def rows_at(self, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
-                found: Structure) -> tuple[tuple[int, ...], np.ndarray]:
+                found: Structure) -> tuple[tuple[int, ...], np.ndarray, np.ndarray]:
         """Rows to keep near `pose`: `rows`, unless their scaled Jacobian's
         condition exceeds REPICK_CONDITION at some instant, then rows
-        picked afresh at the first such instant; and which instants those are."""
-        J = self.scaling.jacobian(self.c.evaluate(pose, t)["jac"])
-        poor = condition_1(J[:, list(rows)]) > REPICK_CONDITION
+        picked afresh at the first such instant; which instants those are;
+        and the inverse of `rows`' Jacobian at `pose` (Newton's first)."""
+        J = self.c.evaluate(pose, t)["jac"]
+        idx = list(rows)
+        inverse = np.linalg.inv(J[:, idx])
+        row, column = self.scaling.row[idx], self.scaling.column
+        poor = condition_1(J[:, idx] * row[:, None] * column, inverse / column[:, None] / row) > REPICK_CONDITION
         if not poor.any():
-            return rows, poor
+            return rows, poor, inverse
         k = int(np.argmax(poor))
-        return kept_rows(self.c, J[k], self.c.n - found.mobility), poor
+        return kept_rows(self.c, self.scaling.jacobian(J[k]), self.c.n - found.mobility), poor, inverse
 
     # -- columns ------------------------------------------------------------------------------
 

@@ -93,22 +93,22 @@ def settled(size: np.ndarray, previous: np.ndarray) -> np.ndarray:
 
 
 def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tuple[int, ...] | None,
-           where: str = "assembly") -> Pose:
+           where: str = "assembly", inverse: np.ndarray | None = None) -> Pose:
     """Newton on Φ(q, t) = 0 to the fixed point. With `rows` (as many as
     coordinates) each step solves those rows squarely, all instants at
     once; without, one instant by least squares on all rows (the
     minimum-norm step: assembly, redundant or not). Raises MechanismError
-    where it does not settle or the loop does not close."""
+    where it does not settle or the loop does not close. `inverse`: the
+    kept rows' Jacobian inverted at `pose`, if at hand."""
     if not c.m:      # free bodies: nothing to close
         return pose
     previous = np.full(len(pose), np.inf)
     done = np.zeros(len(pose), dtype=bool)
-    inverse = None
     for it in range(NEWTON_ITERATIONS):
         # batches: chord iterations, the kept rows' Jacobian inverted at the
         # first iterate and afresh every CHORD iterations (each further
         # iteration evaluates Φ alone: cheaper than a Jacobian and a solve)
-        fresh = rows is None or it % CHORD == 0
+        fresh = rows is None or (it % CHORD == 0 and not (it == 0 and inverse is not None))
         out = c.evaluate(pose, t, jacobian=fresh)
         if rows is None:
             Js = scaling.jacobian(out["jac"][0])

@@ -5,7 +5,6 @@ the systems in tests/spatial_mechanisms.py)."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from mechval.reference.closed_forms import spatial as closed
 from mechval.reference.spatial.columns import body_state

@@ -16,7 +16,7 @@ from mechval.reference.spatial.columns import body_state
 from mechval.reference.spatial.forces import world_inertia
 from mechval.reference.spatial.rotation import cross, frame_from_axis
 from mechval.reference.spatial.solver import SpatialSolver
-from mechval.reference.spatial.system import SpatialBody, SpatialJoint, SpatialSystem
+from mechval.reference.spatial.system import SpatialSystem
 from spatial_mechanisms import RSSR, SphericalFourBar
 
 #: Rounding-level checks, relative to the quantity's peak.

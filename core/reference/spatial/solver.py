@@ -40,7 +40,7 @@ from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_times
 from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
-from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, moved, newton, structure
+from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, newton, structure
 from mechval.reference.spatial.system import SpatialSystem
 
 CHUNK = 1 << 12

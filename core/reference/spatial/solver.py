@@ -1,0 +1,357 @@
+"""The spatial reference for prescribed motion: positions, rates,
+reactions and drive efforts of a spatial system at any instants.
+
+As the planar reference (`mechval.reference.planar.solver`): assemble at
+the first instant (`structure.newton`), follow the branch by continuation
+over nodes, then at every requested instant, in batches:
+- positions: chord Newton from the nearest earlier node's second-order
+  Taylor prediction (on the group for rotations), to the fixed point;
+- velocities Φq·w = −Φt, accelerations Φq·ẇ = γ, multipliers from
+  M·ẇ + Φqᵀ·λ = Q (`forces`): square solves with the independent rows.
+The independent rows are those of the assembly (`structure.kept_rows`)
+until their condition passes REPICK_CONDITION near some pose, where
+others are picked: a set of rows can turn singular where the whole
+Jacobian does not (Bennett's linkage folding flat).
+
+Reactions from the multipliers (constraint loads are −Φqᵀ·λ, Nikravesh
+1988, ch. 11): a joint's rows give the load (force F, moment about the
+centre of mass) on body_j, or the opposite of body_i's where body_j is the
+ground; the raw columns are F and its moment M about Pj, world axes, the
+load BY body_i ON body_j. Drive efforts are −λ of their rows.
+
+Redundant rows (a rank-deficient Φq) carry λ = 0 here; λ is undetermined
+along the null space of Φqᵀ (one null vector per dependent row); a
+reaction column that such a vector reaches is reported missing with the
+reason, and every body's resultant constraint load (unique, −Φqᵀ·λ per
+body) is added as B.R.Fx … B.R.Mz, as the planar reference does.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+
+from mechval.reference.planar.constraints import MechanismError
+from mechval.reference.spatial.forces import AppliedForces, mass_times
+from mechval.reference.spatial.joints import Constraints, Pose
+from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
+from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, newton, structure
+from mechval.reference.spatial.system import SpatialSystem
+
+CHUNK = 1 << 12
+#: See `mechval.reference.planar.solver.UNIQUE_TOL`.
+UNIQUE_TOL = 1e-8
+#: Continuation: a node's prediction may miss its solution by this much
+#: (scaled) before the step is halved; below a tenth of it, the step grows.
+NODE_JUMP = 5e-3
+#: A batch instant further than this (scaled) from its prediction may
+#: have left the branch.
+BRANCH_JUMP = 1e-2
+SINGULAR_CONDITION = 1e10
+#: A node where the kept rows' scaled Jacobian is worse conditioned than
+#: this gets its rows picked afresh (the full Jacobian may be well
+#: conditioned there: Bennett's linkage folding at θ1 = π).
+REPICK_CONDITION = 1e3
+METHOD = "absolute coordinates, rotations on the group, Newton continuation, multipliers (Nikravesh 1988, Haug 1989)"
+RESULTANT = ("R.Fx", "R.Fy", "R.Fz", "R.Mx", "R.My", "R.Mz")
+
+
+@dataclass(frozen=True)
+class SpatialSolution:
+    frame: pd.DataFrame
+    missing: Mapping[str, str]
+    structure: Structure
+    facts: Mapping[str, Any] = field(default_factory=dict)
+    #: Per instant, the condition number of the scaled square Jacobian.
+    condition: np.ndarray | None = field(default=None, repr=False)
+
+
+@dataclass
+class State:
+    """Positions, velocities (N, nb, 6), accelerations and multipliers at N instants."""
+
+    t: np.ndarray
+    pose: Pose
+    w: np.ndarray
+    dw: np.ndarray
+    lam: np.ndarray
+    jac: np.ndarray
+    #: The rows its square solves kept, and their Jacobian's inverse.
+    rows: tuple[int, ...] = ()
+    inverse: np.ndarray | None = None
+
+
+def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
+          extra: np.ndarray | None = None) -> State:
+    """Velocities, accelerations and multipliers at solved positions by the
+    kept rows' Jacobian, inverted once for the three solves (and for its
+    condition); `extra`: Q on top of the applied forces."""
+    idx = list(rows)
+    nb = len(c.bodies)
+    out = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))     # Φq and −Φt (γ is not needed at rest)
+    inverse = np.linalg.inv(out["jac"][:, idx])
+    w = np.einsum("nij,nj->ni", inverse, out["rhs"][:, idx]).reshape(len(t), nb, 6)
+    gamma = c.evaluate(pose, t, w, jacobian=False)["gamma"][:, idx]
+    dw = np.einsum("nij,nj->ni", inverse, gamma).reshape(len(t), nb, 6)
+    Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
+    lam = np.zeros((len(t), c.m))
+    lam[:, idx] = np.einsum("nji,nj->ni", inverse, Q - mass_times(c.system, pose, dw))
+    return State(t, pose, w, dw, lam, out["jac"], tuple(rows), inverse)
+
+
+class SpatialSolver:
+    """Solve one spatial system with as many drives as degrees of freedom."""
+
+    def __init__(self, system: SpatialSystem):
+        self.system = system
+        self.c = Constraints(system)
+        self.forces = AppliedForces(self.c)
+        self.scaling = Scaling(self.c)
+
+    def assemble(self, t0: float) -> tuple[Pose, Structure]:
+        t = np.array([t0])
+        pose = newton(self.c, self.scaling, initial_pose(self.c), t, None)
+        found = structure(self.c, self.scaling, pose)
+        drives = len(self.system.drives)
+        if found.mobility != drives or len(found.independent) != self.c.n:
+            raise MechanismError("drive", f"the mobility is {found.mobility} (rank of the joints' Jacobian, "
+                                          f"Grübler–Kutzbach {found.grubler}) but {drives} drive"
+                                          f"{'s prescribe' if drives != 1 else ' prescribes'} the motion"
+                                          + ("" if found.mobility != drives else ": the drives are dependent"))
+        angles = self.c.drive_angles(pose)
+        for d in self.system.drives:
+            if d.name in angles and np.cos(angles[d.name][0] - d.law.angle(t0)) < 0:
+                raise MechanismError(f"drive.{d.name}", "the assembly lands half a turn from the drive's angle: "
+                                                        "state body rotations closer to the assembled pose")
+        return pose, found
+
+    def _march(self, pose: Pose, found: Structure, t0: float, t_end: float) -> list[State]:
+        """Solved nodes from t0 to t_end, steps halved where a prediction
+        misses and grown where it is close."""
+        rows = found.independent
+        nodes = [rates(self.c, self.forces, pose, np.array([t0]), rows)]
+        h = (t_end - t0) / 16 if t_end > t0 else 0.0
+        while nodes[-1].t[0] < t_end:
+            last = nodes[-1]
+            step = min(h, t_end - last.t[0])
+            t = last.t + step
+            predicted = predict(last, t)
+            shortest = step <= 1e-9 * max(1.0, abs(t_end - t0))
+            try:
+                rows, _, inverse = self.rows_at(predicted, t, last.rows, found)
+                solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation",
+                                inverse=inverse if rows == last.rows else None)
+            except MechanismError:
+                if shortest:
+                    raise
+                h = step / 4
+                continue
+            jump = self.scaling.step(flat_difference(solved, predicted))[0]
+            if jump > NODE_JUMP and not shortest:
+                h = step / 2
+                continue
+            nodes.append(rates(self.c, self.forces, solved, t, rows))
+            if jump < NODE_JUMP / 10:
+                h = step * 1.5
+        return nodes
+
+    def solve(self, t: np.ndarray) -> SpatialSolution:
+        t = np.asarray(t, dtype=float)
+        if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) < 0):
+            raise MechanismError("time", "instants must be finite and nondecreasing")
+        pose0, found = self.assemble(float(t[0]))
+        nodes = self._march(pose0, found, float(t[0]), float(t[-1]))
+        node_t = np.array([n.t[0] for n in nodes])
+        columns = ["t"] + self.system.motion_columns() + self.system.reaction_columns()
+        table = np.empty((len(columns), len(t)))
+        undetermined = np.zeros(len(columns), dtype=bool)
+        condition = np.empty(len(t))
+        resultants = np.empty((6 * len(self.system.bodies) if found.redundant else 0, len(t)))
+        parts = [slice(s, s + CHUNK) for s in range(0, len(t), CHUNK)]
+
+        def batch(part: slice) -> np.ndarray:
+            flags = np.zeros(len(columns) - 1, dtype=bool)
+            tt = t[part]
+            which = np.clip(np.searchsorted(node_t, tt, side="right") - 1, 0, len(nodes) - 1)
+            sets = {nodes[k].rows for k in np.unique(which)}
+            for rows in sets:         # the instants whose nodes kept the same rows
+                mask = np.array([nodes[k].rows == rows for k in which])
+                flags |= group(np.arange(part.start, part.start + len(tt))[mask], which[mask], rows)
+            return flags
+
+        def group(index: np.ndarray, which: np.ndarray, rows: tuple[int, ...]) -> np.ndarray:
+            tt = t[index]
+            predicted = Pose(np.empty((len(tt), len(self.c.bodies), 3)), np.empty((len(tt), len(self.c.bodies), 3, 3)))
+            for k in np.unique(which):
+                mask = which == k
+                guess = predict(nodes[k], tt[mask])
+                predicted.G[mask], predicted.A[mask] = guess.G, guess.A
+            better, poor, inverse = self.rows_at(predicted, tt, rows, found)
+            if better != rows:     # near a pose where these rows turn singular: the poor instants get others
+                flags = group(index[poor], which[poor], better)
+                if poor.all():
+                    return flags
+                keep = ~poor
+                return flags | group(index[keep], which[keep], rows)
+            pose = newton(self.c, self.scaling, predicted, tt, rows, where="batch", inverse=inverse)
+            jump = self.scaling.step(flat_difference(pose, predicted))
+            if jump.max() > BRANCH_JUMP:
+                k = int(np.argmax(jump))
+                raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
+                                             "the continuation's prediction: a branch point or near-singular position")
+            state = rates(self.c, self.forces, pose, tt, rows)
+            row, column = self.scaling.row[list(rows)], self.scaling.column
+            condition[index] = condition_1(state.jac[:, list(rows)] * row[:, None] * column,
+                                           state.inverse / column[:, None] / row)
+            table[0, index] = tt
+            table[1:, index] = self._columns(state)
+            if found.redundant:    # −Φqᵀ·λ per body: unique however λ is split
+                resultants[:, index] = -np.einsum("nrk,nr->kn", state.jac, state.lam)
+            return self._undetermined(state) if found.redundant else np.zeros(len(columns) - 1, dtype=bool)
+
+        pool = ThreadPoolExecutor(max_workers=min(len(parts), os.cpu_count() or 1))
+        try:
+            for flags in pool.map(batch, parts):
+                undetermined[1:] |= flags
+        finally:
+            pool.shutdown(cancel_futures=True)
+        if condition.max() > SINGULAR_CONDITION:
+            k = int(np.argmax(condition))
+            raise MechanismError("time", f"the Jacobian is singular at t = {t[k]:.6g} s (condition "
+                                         f"{condition[k]:.3g} > {SINGULAR_CONDITION:.0e})")
+        frame, missing = self.finish(table, undetermined, found, resultants)
+        facts = {"method": METHOD, "grubler": found.grubler, "mobility": found.mobility, "rank": found.rank,
+                 "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
+                 "continuation_nodes": len(nodes)}
+        return SpatialSolution(frame, missing, found, facts, condition)
+
+    def rows_at(self, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
+                found: Structure) -> tuple[tuple[int, ...], np.ndarray, np.ndarray]:
+        """Rows to keep near `pose`: `rows`, unless their scaled Jacobian's
+        condition exceeds REPICK_CONDITION at some instant, then rows
+        picked afresh at the first such instant; which instants those are;
+        and the inverse of `rows`' Jacobian at `pose` (Newton's first)."""
+        J = self.c.evaluate(pose, t)["jac"]
+        idx = list(rows)
+        inverse = np.linalg.inv(J[:, idx])
+        row, column = self.scaling.row[idx], self.scaling.column
+        poor = condition_1(J[:, idx] * row[:, None] * column, inverse / column[:, None] / row) > REPICK_CONDITION
+        if not poor.any():
+            return rows, poor, inverse
+        k = int(np.argmax(poor))
+        return kept_rows(self.c, self.scaling.jacobian(J[k]), self.c.n - found.mobility), poor, inverse
+
+    # -- columns ------------------------------------------------------------------------------
+
+    def finish(self, table: np.ndarray, undetermined: np.ndarray, found: Structure,
+               resultants: np.ndarray) -> tuple[pd.DataFrame, dict[str, str]]:
+        """The raw frame from a table of columns: reactions that are not
+        unique blanked with their reason, resultants added where rows are
+        redundant."""
+        columns = ["t"] + self.system.motion_columns() + self.system.reaction_columns()
+        frame = pd.DataFrame(table.T, columns=columns, copy=False)
+        missing = {}
+        for k in np.flatnonzero(undetermined):
+            frame[columns[k]] = np.nan
+            missing[columns[k]] = (f"not unique: {found.redundant} redundant constraint"
+                                   f"{'s' if found.redundant != 1 else ''} (Jacobian rank {found.rank} of "
+                                   f"{found.rows} rows) make this reaction statically indeterminate")
+        if found.redundant:
+            names = [f"{b.name}.{q}" for b in self.system.bodies for q in RESULTANT]
+            frame = frame.assign(**dict(zip(names, resultants)))
+        return frame, missing
+
+    def frame_of(self, s: State, found: Structure) -> tuple[pd.DataFrame, dict[str, str]]:
+        """`finish` for one state (the dynamics' outputs)."""
+        table = np.concatenate([s.t[None], self._columns(s)])
+        flags = np.zeros(len(table), dtype=bool)
+        if found.redundant:
+            flags[1:] = self._undetermined(s)
+        return self.finish(table, flags, found, -np.einsum("nrk,nr->kn", s.jac, s.lam))
+
+    def _columns(self, s: State) -> np.ndarray:
+        values = []
+        for k, body in enumerate(self.system.bodies):
+            A = s.pose.A[:, k]
+            arm = A @ np.asarray(body.com, dtype=float)       # G − O
+            om, al = s.w[:, k, 3:], s.dw[:, k, 3:]
+            origin = s.pose.G[:, k] - arm
+            v = s.w[:, k, :3] - cross(om, arm)
+            a = s.dw[:, k, :3] - cross(al, arm) - cross(om, cross(om, arm))
+            values += [*origin.T, *matrix_to_quaternion(A).T, *v.T, *om.T, *a.T, *al.T]
+        values += list(self.reactions(s, s.lam))
+        return np.array(values)
+
+    def reactions(self, s: State, lam: np.ndarray, applied: bool = True) -> np.ndarray:
+        """Raw reaction columns from multipliers `lam`, (columns, N): linear
+        in them but for the joint torques' applied values (zeros unless
+        `applied`)."""
+        c, values = self.c, []
+        for j in self.system.joints:
+            rows = c.joint_rows[j.name]
+            bi, si, bj, sj = c.ends[j.name]
+            Pj = c.point(s.pose, None, bj, sj).value
+            body, sign = (bj, 1.0) if bj >= 0 else (bi, -1.0)
+            load = -np.einsum("nrk,nr->nk", s.jac[:, rows, 6 * body:6 * body + 6], lam[:, rows])
+            F, N = sign * load[:, :3], sign * load[:, 3:]
+            M = N - cross(Pj - s.pose.G[:, body], F)
+            values += [*F.T, *M.T]
+        values += [-lam[:, c.drive_rows[d.name]] for d in self.system.drives]
+        values += [np.asarray(tq.law.value(s.t), dtype=float) + 0 * s.t if applied else 0 * s.t
+                   for tq in self.system.torques]
+        return np.array(values)
+
+    def _undetermined(self, s: State) -> np.ndarray:
+        """Per raw column (motion ones never): does a null vector of Φqᵀ reach it?"""
+        idx = list(s.rows)
+        dependent = [k for k in range(self.c.m) if k not in s.rows]
+        J = s.jac
+        # each dependent row as a combination of the kept ones (least squares:
+        # the dynamics keep fewer rows than coordinates)
+        kept, rest = np.swapaxes(J[:, idx], 1, 2), np.swapaxes(J[:, dependent], 1, 2)
+        coefficients = np.linalg.solve(kept, rest) if len(idx) == J.shape[2] else np.linalg.pinv(kept) @ rest
+        flags = np.zeros(len(self.system.reaction_columns()), dtype=bool)
+        scale = np.array([1.0 if q.startswith("F") else 1 / self.scaling.size
+                          for j in self.system.joints for q in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")]
+                         + [1.0] * (len(flags) - 6 * len(self.system.joints)))
+        for col, k in enumerate(dependent):
+            null = np.zeros((len(s.t), self.c.m))
+            null[:, k] = 1.0
+            null[:, idx] = -coefficients[:, :, col]
+            reached = np.abs(self.reactions(s, null, applied=False)) * scale[:, None]
+            flags |= (reached > UNIQUE_TOL * reached.max(axis=0, keepdims=True)).any(axis=1)
+        motion = len(self.system.motion_columns())
+        return np.concatenate([np.zeros(motion, dtype=bool), flags])
+
+
+def condition_1(J: np.ndarray, inverse: np.ndarray | None = None) -> np.ndarray:
+    """‖J‖₁·‖J⁻¹‖₁ per instant: the 1-norm condition number, by one batched
+    LU inverse unless given (an SVD per instant costs several times more);
+    within a factor n of the 2-norm one."""
+    norm = lambda M: np.abs(M).sum(axis=-2).max(axis=-1)     # noqa: E731
+    return norm(J) * norm(np.linalg.inv(J) if inverse is None else inverse)
+
+
+def predict(node: State, t: np.ndarray) -> Pose:
+    """Second-order Taylor prediction from a solved node, rotations on the group."""
+    dt = (t - node.t[0])[:, None, None]
+    G = node.pose.G + node.w[:, :, :3] * dt + 0.5 * node.dw[:, :, :3] * dt * dt
+    A = exp_map(node.w[:, :, 3:] * dt + 0.5 * node.dw[:, :, 3:] * dt * dt) @ node.pose.A
+    return Pose(G, A)
+
+
+def flat_difference(a: Pose, b: Pose) -> np.ndarray:
+    """(δG, δπ) from b to a per instant, (N, n): δπ the small rotation A_a·A_bᵀ."""
+    R = a.A @ np.swapaxes(b.A, -1, -2)
+    dpi = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    return np.concatenate([a.G - b.G, dpi], axis=-1).reshape(len(a), -1)
+
+
+def solve_spatial(system: SpatialSystem, t: np.ndarray) -> SpatialSolution:
+    """The spatial reference's raw columns of `system` at instants t."""
+    return SpatialSolver(system).solve(t)

@@ -211,6 +211,8 @@ def build_model(mech: Mechanism) -> PinocchioModel:
     for constraint in constraints:
         constraint_data.append(constraint.createData())
     data = model.createData()
+    if not model.check(data):       # e.g. a subtree that is not contiguous (engines/pinocchio/findings.py)
+        raise ValueError(f"pinocchio: Model.check refuses the model built for {mech.name!r}")
     pin.initConstraintDynamics(model, data, constraints, constraint_data)
     return PinocchioModel(model, data, tuple(tree), tuple(loops), constraints, constraint_data, joint_of, frame_of, axes)
 

@@ -8,6 +8,7 @@ refused, and `constraintDynamics`'s API pinned (Pinocchio 4.1 marks it
 
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from mechval.harness.audit_run import audit_scenario
 from mechval.harness.simulate import simulate
 from mechval.judging.compare import compare
 from mechval.model.mechanism import GROUND, Joint
+from mechval.model.scenario import ScenarioError
 from mechval.reference.linkages import build_mechanism
 from mechval.scenarios import parse
 from mechval.testing import AdapterContract
@@ -33,7 +35,7 @@ except ImportError as exc:
 else:
     pytestmark = pytest.mark.engine     # every test here runs Pinocchio
     from mechval.engines.pinocchio import audit as pinocchio_audit, findings, readout
-    from mechval.engines.pinocchio.model import build_model, topology
+    from mechval.engines.pinocchio.model import build_model, coordinates, topology
 
 #: BREADTH_FIRST_TREE's figure measured on Pinocchio 4.1.0 (the probe's
 #: crank–conrod coupling, 0.1406 kg·m², read as 0: 28 % of the matrix's
@@ -93,6 +95,31 @@ def test_constraint_dynamics_api_is_pinned():
     pin.initConstraintDynamics(pm.model, data, models, datas)
     listed = pin.constraintDynamics(pm.model, data, q, zero, zero, models, datas, pin.ProximalSettings(1e-12, 1e-8, 50))
     np.testing.assert_allclose(listed, a, rtol=0, atol=1e-9 * np.abs(a).max())
+
+
+def test_the_default_proximal_settings_give_nan(adapter):
+    """A point constraint's z row is redundant in the plane: with
+    Pinocchio's default ProximalSettings (μ = 0, one iteration) the KKT
+    system is singular and every acceleration and λ is NaN; the adapter's
+    (μ = 1e-8) solve it in a few iterations, and μ = 0 is refused as a
+    setting."""
+    scenario = parse(fourbar(time={"end": 0.1, "samples": 2}), "prox.toml")
+    mechanism = build_mechanism(scenario)
+    pm = build_model(mechanism)
+    start = mechanism.motion(np.array([0.0]))
+    q, v = coordinates(pm, mechanism, {c: start[c].to_numpy() for c in start.columns})
+    zero = np.zeros(pm.model.nv)
+    default = pin.ProximalSettings()
+    assert (default.mu, default.max_iter) == (0.0, 1)
+    a = pin.constraintDynamics(pm.model, pm.data, q, v, zero, pm.constraints, pm.constraint_data, default)
+    assert np.isnan(a).all() and np.isnan(np.asarray(pm.data.lambda_c)).all()
+    settings = adapter.settings_for(scenario, mechanism)
+    ours = pin.ProximalSettings(settings["proximal_accuracy"], settings["proximal_mu"],
+                                settings["proximal_max_iterations"])
+    a = pin.constraintDynamics(pm.model, pm.data, q, v, zero, pm.constraints, pm.constraint_data, ours)
+    assert np.isfinite(a).all() and ours.iter < settings["proximal_max_iterations"]
+    with pytest.raises(ScenarioError, match="proximal_mu"):
+        adapter.settings_for(scenario, mechanism, {"proximal_mu": 0.0})
 
 
 def test_the_loops_forces_act_on_the_first_frame(adapter, monkeypatch):
@@ -194,7 +221,6 @@ def test_a_loop_only_a_slide_closes_is_refused():
     joints = (Joint("O2", "revolute", GROUND, "crank", (0.0, 0.0), (0.0, 0.0)),
               Joint("slot", "prismatic", "crank", "slider", (0.0, 0.0), (0.0, 0.0)),
               Joint("guide", "prismatic", GROUND, "slider", (0.0, 0.0), (0.0, 0.0), axis=(0.0, 1.0)))
-    import dataclasses
     blocked = dataclasses.replace(mechanism, joints=joints,
                                   bodies=tuple(b for b in mechanism.bodies if b.name != "conrod"))
     with pytest.raises(Unrepresentable) as refused:

@@ -60,6 +60,7 @@ class Dynamics:
         self.drive_coordinates = np.array([tj.coordinate for tj in tree], dtype=int)
         self.drive_signs = np.array([tj.sign for tj in tree])
         self.laws = [d.law for d in mech.drives]
+        self.alphas = np.array([float(law.alpha) for law in self.laws])
         self.calls = 0
         self.iterations_max = 0
 
@@ -76,26 +77,24 @@ class Dynamics:
         tau_joints, on_bodies, wrenches = generalised(self.pm, self.fx, q, v, t)
         tau = tau_joints + on_bodies
         a = self.forward(q, v, tau)
-        efforts = np.zeros(len(self.laws))
-        if len(self.laws):
-            wanted = self.drive_signs * np.array([law.acceleration(t) for law in self.laws], dtype=float)
-            response = np.empty((len(self.laws), len(self.laws)))
-            unit_responses = []
-            for k, coordinate in enumerate(self.drive_coordinates):
-                unit = tau.copy()
-                unit[coordinate] += 1.0
-                unit_responses.append(self.forward(q, v, unit) - a)
-                response[:, k] = unit_responses[-1][self.drive_coordinates]
-            efforts = np.linalg.solve(response, wanted - a[self.drive_coordinates])
-            tau, tau_joints = tau.copy(), tau_joints.copy()
-            tau[self.drive_coordinates] += efforts
-            tau_joints[self.drive_coordinates] += efforts
-            if final:
-                a = self.forward(q, v, tau)
-            else:
-                a = a + sum(e * r for e, r in zip(efforts, unit_responses))
-        elif final:
-            a = self.forward(q, v, tau)
+        drives = self.drive_coordinates
+        if not len(drives):
+            return Solution(a, tau_joints, np.zeros(0), wrenches, np.array(self.pm.data.lambda_c))
+        # φ'' of each law (the quadratic DriveLaw's is its constant alpha).
+        wanted = self.drive_signs * self.alphas - a[drives]
+        responses = np.empty((len(drives), len(a)))
+        for k, coordinate in enumerate(drives):
+            tau[coordinate] += 1.0
+            responses[k] = self.forward(q, v, tau) - a
+            tau[coordinate] -= 1.0
+        if len(drives) == 1:
+            efforts = wanted / responses[0, drives]
+        else:
+            efforts = np.linalg.solve(responses[:, drives].T, wanted)
+        tau[drives] += efforts
+        tau_joints = tau_joints.copy()
+        tau_joints[drives] += efforts
+        a = self.forward(q, v, tau) if final else a + efforts @ responses
         return Solution(a, tau_joints, efforts, wrenches, np.array(self.pm.data.lambda_c))
 
 

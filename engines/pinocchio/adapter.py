@@ -83,8 +83,10 @@ class PinocchioAdapter(EngineAdapter):
     }
     #: Drives are tree coordinates with computed efforts; dampers, torque
     #: laws, springs and body torques applied forces; free motion the same
-    #: integration with no drive. Not redundant constraints (not built yet).
-    features = frozenset(FEATURES) - {"redundant constraints"}
+    #: integration with no drive; redundant constraints too (the proximal
+    #: solver picks one of the many λ; the harness compares each body's
+    #: resultant of them, which is unique).
+    features = frozenset(FEATURES)
     step_settings = ("timestep",)
     #: Nothing kept per step (RK4 keeps one state); per sample a row of
     #: raw columns: measured 31 copies of the samples × signals table at

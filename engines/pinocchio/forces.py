@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from mechval.model.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
+from mechval.model.mechanism import GROUND, BodyTorque, Joint, Mechanism, SpringDamper, TorqueLaw
 
 from mechval.engines.pinocchio.model import PinocchioModel, vec3
 
@@ -27,9 +27,9 @@ class Effects:
     """Which effects a mechanism has, sorted once for the integration loop."""
 
     tree_dampers: tuple[tuple[int, float], ...]          # (coordinate, damping)
-    tree_laws: tuple[tuple[int, float, object], ...]     # (coordinate, sign, TorqueLaw)
-    cut_dampers: tuple                                   # Joints closing loops, with a damper
-    cut_laws: tuple                                      # (Joint, TorqueLaw) at loop-closing pins
+    tree_laws: tuple[tuple[int, float, TorqueLaw], ...]  # (coordinate, tree sign, law)
+    cut_dampers: tuple[Joint, ...]                       # loop-closing pins with a damper
+    cut_laws: tuple[tuple[Joint, TorqueLaw], ...]        # laws at loop-closing pins
     springs: tuple[SpringDamper, ...]
     torques: tuple[BodyTorque, ...]
 
@@ -39,6 +39,7 @@ class Effects:
 
 
 def effects(pm: PinocchioModel, mech: Mechanism) -> Effects:
+    """The mechanism's applied effects, each where the model applies it."""
     tree_dampers, cut_dampers = [], []
     for joint in mech.damped_joints:
         tj = pm.tree_joint(joint.name)

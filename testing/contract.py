@@ -22,6 +22,7 @@ attribute, and the tests that need one skip with that reason.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import ClassVar
 
 import numpy as np
@@ -74,6 +75,15 @@ def dynamic_mechanism(name: str):
     case = dm.CASES[name]()
     mech = dataclasses.replace(case.mech, assembly_pose=case.pose)
     return mech, np.linspace(0.0, DYNAMIC[name], 101)
+
+
+@functools.lru_cache(maxsize=None)
+def dynamic_reference(name: str):
+    """The forward-dynamics reference of a dynamic case at its output
+    instants, solved once per test session (DOP853 at its RTOL takes
+    seconds, and every engine's suite compares with the same frame)."""
+    mech, times = dynamic_mechanism(name)
+    return raw_dynamics(mech, times).frame
 
 
 def dynamic_errors(mech, reference, result) -> dict[str, float]:
@@ -295,7 +305,7 @@ class AdapterContract:
         (`mechval.reference.dynamics`, DOP853 at its RTOL) at the engine's default
         setting."""
         mech, times, frame = self.run_dynamic(adapter, name)
-        reference = raw_dynamics(mech, times).frame
+        reference = dynamic_reference(name)
         ratios = dynamic_errors(mech, reference, frame)
         assert {column: ratio for column, ratio in ratios.items() if not ratio <= 1.0} == {}
 

@@ -120,6 +120,8 @@ def refuse_to_run(monkeypatch, engine: str) -> None:
     ("pybullet", "preroll_steps", -10), ("exudyn", "spectral_radius", -1), ("mujoco", "solimp", "garbage"),
     ("mujoco", "solimp", SOLIMP_INJECTION), ("mujoco", "clock_mass", 1e-300), ("mujoco", "refine", 10**9),
     *[("mujoco", "integrator", s) for s in HOSTILE_STRINGS], ("exudyn", "full_newton", 1),
+    ("pinocchio", "proximal_mu", 0.0), ("pinocchio", "proximal_max_iterations", 2.5),
+    ("pinocchio", "baumgarte_steps", -1),
     *[(e, "timestep", v) for e in ENGINES for v in (math.nan, math.inf, -1e-3, 1e300, "1e-3", 1e-12)]])
 def test_bad_setting_refused_in_one_line_before_any_run(tmp_path, capsys, monkeypatch, engine, key, value):
     """`mechval simulate` with a bad setting in the file: exit 2, one line

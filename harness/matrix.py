@@ -33,6 +33,7 @@ from mechval.scenarios import builtin_path
 from mechval.records.signals import Signals
 
 from . import baseline as bl
+from . import baseline_store as store
 from . import release_envs as envs
 from .defaults import DASK_CONNECT_TIMEOUT
 from .executors import Done, dask_address_problem, executor_for
@@ -245,11 +246,23 @@ def matrix_command(engine: str, items: list[str], out: Path | None, envs_dir: Pa
                             for row in change_rows(old, new, references, by_name, engine, rtol or bl.DEFAULT_RTOL)])
     releases = releases_table(results)
     rule = dict(margin=bl.SENSITIVITY_MARGIN, floor=bl.ABSOLUTE_FLOOR, accuracy_change=bl.ACCURACY_CHANGE)
-    write_matrix_report(out, engine, versions, releases, accuracy, changes, envs_dir, rule)
+    write_matrix_report(out, engine, versions, releases, accuracy, changes, envs_dir, rule,
+                        lambda folder: store_signals(folder / "signals", results))
     print(summary_markdown(engine, releases, changes))
     print(f"report: {out / 'index.html'}")
     failed = any(r.error for r in results) or any(run.error for r in results for run in r.runs)
     return 1 if failed else 0
+
+
+def store_signals(root: Path, results: list[ReleaseResult]) -> None:
+    """Every run's signals and record under `root`, as baselines of their
+    release (DIR/engine/version/scenario/setting.csv and .json)."""
+    for result in results:
+        for run in result.runs:
+            if run.baseline is not None:
+                meta = run.baseline.meta
+                store.save(store.baseline_path(root, meta["engine"], meta["version"], run.scenario, run.setting),
+                           run.baseline.signals, meta)
 
 
 def releases_table(results: list[ReleaseResult]) -> pd.DataFrame:

@@ -23,6 +23,7 @@ every process started in the environment.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import hashlib
 import importlib.metadata
@@ -181,11 +182,12 @@ def ensure_env(envs: Path, release: Release, wheel: Path, digest: str) -> Path:
     (`wheel`, `digest`): reused, refreshed (a changed mechval) or created;
     ReleaseUnavailable with pip's reason when the release cannot be
     installed. One process at a time works on an environment (a lock file
-    beside it)."""
+    beside it). A new environment starts as a copy of the pins' own
+    (`_pinned_env`, hard links where the file system has them), so that
+    pip installs only the release and what it needs beyond the pins."""
     envs.mkdir(parents=True, exist_ok=True)
     env = envs / release.folder_name
-    with open(envs / f".{release.folder_name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
+    with _locked(envs, release.folder_name):
         held = _read_record(env)
         wanted = release.record(digest)
         if held is not None and {**held, "mechval": digest} == wanted:
@@ -193,9 +195,11 @@ def ensure_env(envs: Path, release: Release, wheel: Path, digest: str) -> Path:
                 _install_mechval(env, wheel)
                 _write_record(env, wanted)
             return env
+        pins = _pinned_env(envs, release)
         shutil.rmtree(env, ignore_errors=True)
         try:
             venv.EnvBuilder(with_pip=False, symlinks=True, clear=True).create(env)
+            _link_tree(_site_packages(pins), _site_packages(env))
             links = [arg for place in release.find_links for arg in ("--find-links", place)]
             _pip(_pip_install(env) + links + [*release.requirements, f"{release.distribution}=={release.version}"],
                  f"install {release.distribution} {release.version}")
@@ -205,6 +209,49 @@ def ensure_env(envs: Path, release: Release, wheel: Path, digest: str) -> Path:
             raise
         _write_record(env, wanted)
         return env
+
+
+def _pinned_env(envs: Path, release: Release) -> Path:
+    """ENVS/.pins-<hash>-py<X.Y>: a venv with the pins alone (no engine,
+    no mechval), created once; the seed of every release's environment."""
+    wanted = {"requirements": list(release.requirements), "python": sys.version.split()[0]}
+    key = hashlib.sha256(json.dumps(wanted).encode()).hexdigest()[:12]
+    name = f".pins-{key}-py{sys.version_info.major}.{sys.version_info.minor}"
+    env = envs / name
+    with _locked(envs, name):
+        if _read_record(env) == wanted:
+            return env
+        shutil.rmtree(env, ignore_errors=True)
+        try:
+            venv.EnvBuilder(with_pip=False, symlinks=True, clear=True).create(env)
+            _pip(_pip_install(env) + list(release.requirements), "install mechval's pinned dependencies")
+        except BaseException:
+            shutil.rmtree(env, ignore_errors=True)
+            raise
+        _write_record(env, wanted)
+        return env
+
+
+@contextlib.contextmanager
+def _locked(envs: Path, name: str):
+    with open(envs / f".{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
+def _site_packages(env: Path) -> Path:
+    return env / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
+
+
+def _link_tree(source: Path, target: Path) -> None:
+    """Copy a folder's files as hard links (a copy where the file system
+    has none): pip replaces a file by removing it, never by writing into
+    it, so an environment's changes do not reach the source."""
+    try:
+        shutil.copytree(source, target, copy_function=os.link, dirs_exist_ok=True)
+    except OSError:
+        shutil.rmtree(target, ignore_errors=True)
+        shutil.copytree(source, target, dirs_exist_ok=True)
 
 
 def _pip_install(env: Path) -> list[str]:
@@ -228,10 +275,13 @@ def _pip(command: list[str], what: str) -> None:
 
 
 def pip_reason(stderr: str) -> str:
-    """pip's own error lines, on one line (its warnings left out)."""
+    """pip's own error lines, on one line: its warnings and its list of
+    releases made for other Pythons left out, each line at most 300
+    characters."""
     lines = [line.strip() for line in stderr.splitlines() if line.strip()]
-    errors = [re.sub(r"^ERROR:\s*", "", line) for line in lines if line.startswith("ERROR:")]
-    return " ".join(errors or lines[-2:])[:500]
+    errors = [re.sub(r"^ERROR:\s*", "", line) for line in lines
+              if line.startswith("ERROR:") and "Ignored the following versions" not in line]
+    return " ".join(line[:300] for line in (errors or lines[-2:]))
 
 
 def _read_record(env: Path) -> dict | None:

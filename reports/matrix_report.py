@@ -13,7 +13,7 @@ accuracy, reason, one column per class: from one release to the next).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -59,13 +59,14 @@ def _change_cell(change: pd.Series | None, accuracy: pd.DataFrame) -> dict:
     if verdict in ("failed", "n/a"):
         return dict(verdict="run failed" if verdict == "failed" else "n/a", detail=str(change["reason"])[:80],
                     css="bad" if verdict == "failed" else "missing", title=str(change["reason"]), rank=verdict)
-    tolerance = "" if accuracy.empty or not (accuracy["verdict"] == "fail").any() else "; out of tolerance"
+    out_of_tolerance = not accuracy.empty and (accuracy["verdict"] == "fail").any()
+    tolerance = "; out of tolerance" if out_of_tolerance else "; within tolerance"
     if verdict == "bit-identical":
-        detail, css = "", "ok1"
+        detail, css = "all signals", "ok1"
     else:
         detail = f"{change['size']:.2g} of peak ({change['signal']}); accuracy {change['accuracy']}"
         css = "ok2" if verdict == "within" else "bad" if change["accuracy"] in ("worse", "mixed") else "ok3"
-    return dict(verdict=verdict, detail=detail + tolerance, css="bad" if tolerance else css,
+    return dict(verdict=verdict, detail=detail + tolerance, css="bad" if out_of_tolerance else css,
                 title=f"{change['changed_signals']:g} of {change['signals']:g} signals moved; {change['reason']}",
                 rank=verdict)
 
@@ -106,7 +107,7 @@ def change_figure(versions: Sequence[str], changes: pd.DataFrame) -> dict | None
         if isinstance(c.get("size"), float) and c["size"] > 0:
             z[i, j] = np.log10(c["size"])
     return {"data": [{"type": "heatmap", "z": [[None if np.isnan(v) else v for v in row] for row in z], "x": steps,
-                      "y": labels, "text": text, "colorscale": "YlOrRd",
+                      "y": labels, "text": text, "colorscale": "YlOrRd", "reversescale": True,
                       "hovertemplate": "%{y}<br>%{x}<br>%{text}<br>log10(|change| / peak) = %{z:.2f}<extra></extra>",
                       "colorbar": {"title": {"text": "log10 |change| / peak"}}}],
             "layout": {"height": 160 + 22 * len(labels), "margin": {"l": 220, "r": 20, "t": 30, "b": 60},
@@ -138,11 +139,13 @@ def summary_markdown(engine: str, releases: pd.DataFrame, changes: pd.DataFrame)
 
 def write_matrix_report(out: Path, engine: str, versions: Sequence[str], releases: pd.DataFrame,
                         accuracy: pd.DataFrame, changes: pd.DataFrame, envs_dir: Path,
-                        rule: Mapping[str, float]) -> Path:
+                        rule: Mapping[str, float], signals: Callable[[Path], None] = lambda folder: None) -> Path:
     """Write the folder `out` (which must not exist yet), whole or not at
     all. `rule`: the regression rule's constants (margin, floor,
-    accuracy_change) the page states."""
+    accuracy_change) the page states; `signals(folder)` writes the runs'
+    signals into it (the harness's baseline layout)."""
     def fill(folder: Path) -> None:
+        signals(folder)
         for name, frame in (("releases.csv", releases), ("accuracy.csv", accuracy), ("changes.csv", changes)):
             write_csv(frame, folder / name)
         (folder / "summary.md").write_text(summary_markdown(engine, releases, changes), encoding="utf-8")

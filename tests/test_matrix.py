@@ -1,0 +1,226 @@
+"""`mechval matrix`: the suite against several releases of one engine, each
+in an environment of its own, and what each release changed.
+
+End to end with a fake engine package built here at two releases that
+differ in one signal (its adapter ships inside it, as a plug-in's may), plus
+a release that does not exist; the environments are created once per test
+session and shared by its tests. The real thing, MuJoCo 3.3.7 and 4.0.0
+from the package index, is `slow`: its figures are checked against the
+committed baselines of both releases (baselines/mujoco/).
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import os
+import subprocess
+import sys
+import textwrap
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mechval.harness import baseline as bl
+from mechval.harness import baseline_store as store
+from mechval.harness import cli, release_envs
+from mechval.harness.matrix import parse_items
+from mechval.harness.preflight import UsageError
+from mechval.scenarios import load
+
+ROOT = Path(__file__).resolve().parent.parent
+ENGINE, DISTRIBUTION = "fakerelease", "mechval-fake-release"
+#: What release 2.0 of the fake does differently: A.Fx, the ground pivot's
+#: force, GAIN times the reference's (1.0 keeps it exact).
+GAIN = 1.001
+FAKE = '''
+"""A fake engine library at release {version}, with its mechval adapter."""
+from mechval.engines.base import EngineAdapter, RawRun
+from mechval.reference.adapter import raw_reference
+
+
+class FakeAdapter(EngineAdapter):
+    name = "fakerelease"
+    library = "mechval_fake_release"
+    distribution = "mechval-fake-release"
+
+    def default_settings(self, mechanism, times):
+        return {{"timestep": 1e-3}}
+
+    def run(self, mechanism, times, settings):
+        raw = raw_reference(mechanism, times)
+        raw["A.Fx"] *= {gain!r}
+        return RawRun(raw)
+'''
+ENTRY_POINTS = "[mechval.engines]\nfakerelease = mechval_fake_release:FakeAdapter\n"
+
+
+def _wheel(folder: Path, version: str, gain: float) -> Path:
+    """The fake's wheel, written as a zip (PEP 427: its module, its
+    dist-info and a RECORD of both), with no build backend to wait for."""
+    info = f"mechval_fake_release-{version}.dist-info"
+    files = {"mechval_fake_release/__init__.py": FAKE.format(version=version, gain=gain),
+             f"{info}/METADATA": f"Metadata-Version: 2.1\nName: {DISTRIBUTION}\nVersion: {version}\n",
+             f"{info}/WHEEL": "Wheel-Version: 1.0\nGenerator: mechval-tests\nRoot-Is-Purelib: true\nTag: py3-none-any\n",
+             f"{info}/entry_points.txt": ENTRY_POINTS}
+    record = "".join(f"{name},sha256={_digest(text)},{len(text.encode())}\n" for name, text in files.items())
+    path = folder / f"mechval_fake_release-{version}-py3-none-any.whl"
+    with zipfile.ZipFile(path, "w") as wheel:
+        for name, text in {**files, f"{info}/RECORD": record + f"{info}/RECORD,,\n"}.items():
+            wheel.writestr(name, text)
+    return path
+
+
+def _digest(text: str) -> str:
+    return base64.urlsafe_b64encode(hashlib.sha256(text.encode()).digest()).rstrip(b"=").decode()
+
+
+@pytest.fixture(scope="session")
+def fake(tmp_path_factory) -> dict[str, Path]:
+    """The fake's wheels at 1.0 and 2.0, release 1.0 unpacked into a folder
+    of its own (so that the calling mechval knows the engine), and the
+    session's environments folder."""
+    root = tmp_path_factory.mktemp("fake-release")
+    wheels, site = root / "wheels", root / "site"
+    wheels.mkdir()
+    for version, gain in (("1.0", 1.0), ("2.0", GAIN)):
+        _wheel(wheels, version, gain)
+    with zipfile.ZipFile(wheels / "mechval_fake_release-1.0-py3-none-any.whl") as first:
+        first.extractall(site)
+    return {"wheels": wheels, "site": site, "envs": root / "envs"}
+
+
+def mechval(fake: dict[str, Path], *args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(fake["site"])}
+    return subprocess.run([sys.executable, "-m", "mechval.harness.cli", *args], capture_output=True, text=True,
+                          env=env, timeout=900, cwd=ROOT)
+
+
+@pytest.fixture(scope="session")
+def fake_matrix(fake, tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
+    """`mechval matrix fakerelease 1.0 3.0 2.0 fourbar-seed`: 3.0 exists nowhere."""
+    out = tmp_path_factory.mktemp("matrix") / "report"
+    run = mechval(fake, "matrix", ENGINE, "1.0", "3.0", "2.0", "fourbar-seed", "--out", str(out),
+                  "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]), "--workers", "2")
+    return run, out
+
+
+def test_a_release_that_cannot_be_installed_is_a_row_with_the_reason(fake_matrix):
+    run, out = fake_matrix
+    assert run.returncode == 1, run.stderr[-3000:]      # a release did not run
+    releases = pd.read_csv(out / "releases.csv", keep_default_na=False, dtype={"version": str}).set_index("version")
+    assert list(releases.index) == ["1.0", "3.0", "2.0"]
+    assert releases.loc["1.0", "status"] == releases.loc["2.0", "status"] == "ok"
+    assert releases.loc["3.0", "status"].startswith(f"not installed: cannot install {DISTRIBUTION} 3.0: ")
+    assert "mechval-fake-release==3.0" in releases.loc["3.0", "status"]
+    assert releases.loc["2.0", "runs"] == 1 and releases.loc["2.0", "failed"] == 0
+    assert "imported 2.0" in releases.loc["2.0", "facts"]
+    assert "3.0" in (out / "index.html").read_text(encoding="utf-8")
+
+
+def test_the_change_between_releases_and_its_size(fake_matrix):
+    """1.0 → 2.0 (3.0 did not run): one signal family changed, by
+    GAIN − 1 of its peak, and the force class got worse; the others are
+    bit-identical."""
+    run, out = fake_matrix
+    changes = pd.read_csv(out / "changes.csv", keep_default_na=False, dtype={"old": str, "new": str})
+    assert len(changes) == 1, changes
+    change = changes.iloc[0]
+    assert (change["old"], change["new"], change["scenario"], change["verdict"]) == ("1.0", "2.0", "fourbar-seed",
+                                                                                     "changed")
+    assert change["size"] == pytest.approx(GAIN - 1, rel=1e-9)
+    assert change["accuracy"] == "worse" and change["force"].endswith("(worsened)")
+    assert change["angle"].endswith("(unchanged)")
+    # Derived here from the stored signals of both releases: exactly the
+    # ground pivot's x force (and the resultants made from it) moved.
+    old = store.load(out / "signals" / ENGINE / "1.0" / "fourbar-seed" / "default.csv").signals
+    new = store.load(out / "signals" / ENGINE / "2.0" / "fourbar-seed" / "default.csv").signals
+    moved = [c for c in old.frame.columns if not np.array_equal(old[c], new[c])]
+    assert moved and all("x" in c or c.startswith("F") for c in moved), moved
+    assert change["changed_signals"] == len(moved)
+    assert np.allclose(new[change["signal"]], GAIN * old[change["signal"]], rtol=1e-12, atol=0)
+
+
+def test_accuracy_per_release_and_class(fake_matrix):
+    """1.0 is the reference itself; 2.0's force error is GAIN − 1."""
+    run, out = fake_matrix
+    accuracy = pd.read_csv(out / "accuracy.csv", keep_default_na=False, dtype={"version": str})
+    assert set(accuracy["version"]) == {"1.0", "2.0"}
+    force = accuracy[accuracy["class"] == "force"].set_index("version")["error"]
+    assert force["1.0"] < 1e-12 and force["2.0"] == pytest.approx(GAIN - 1, rel=1e-6)
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert "changed" in page and "accuracy worse" in page and "matrix-figure" in page
+
+
+def test_environments_are_cached_and_isolated(fake):
+    """Each release's environment holds that release and no other engine
+    library (nor the caller's packages), and is reused as it is."""
+    envs = sorted(p.name for p in fake["envs"].iterdir() if not p.name.startswith("."))
+    python = f"py{sys.version_info.major}.{sys.version_info.minor}"
+    assert envs == [f"{DISTRIBUTION}-1.0-{python}", f"{DISTRIBUTION}-2.0-{python}"]
+    env = fake["envs"] / envs[1]
+    code = ("import importlib.metadata as m, importlib.util as u, sys; "
+            "print(m.version('mechval-fake-release'), [n for n in ('mujoco', 'pybullet', 'exudyn', 'pytest') "
+            "if u.find_spec(n)], sys.flags.no_user_site)")
+    seen = subprocess.run([str(release_envs.python_of(env)), "-c", code], capture_output=True, text=True,
+                          env=release_envs.clean_environ(), check=True).stdout.split()
+    assert seen == ["2.0", "[]", "1"]
+    record = env / release_envs.RECORD
+    before = record.stat().st_mtime_ns
+    release = release_envs.Release(DISTRIBUTION, "2.0", tuple(release_envs.pinned_requirements()),
+                                   (str(fake["wheels"]),))
+    held = release_envs._read_record(env)
+    assert release_envs.ensure_env(fake["envs"], release, Path("/nonexistent.whl"), held["mechval"]) == env
+    assert record.stat().st_mtime_ns == before         # reused: nothing installed, nothing rewritten
+
+
+def test_pins_leave_every_engine_out():
+    pins = release_envs.pinned_requirements()
+    names = {p.split("==")[0].split("[")[0] for p in pins}
+    assert "numpy" in names and "pandas" in names
+    assert not names & {"mujoco", "pybullet", "exudyn"}, pins
+    assert not any("extra" in p for p in pins)
+
+
+@pytest.mark.parametrize("args, says", [
+    (["matrix", "nosuchengine", "1.0"], "unknown engine 'nosuchengine'"),
+    (["matrix", "reference", "1.0"], "unknown engine 'reference'"),
+    (["matrix", "pybullet", "3.x"], "version '3.x': not a release number"),
+    (["matrix", "pybullet", "fourbar-seed"], "name at least one release"),
+    (["matrix", "pybullet", "1.0", "1.0"], "release given twice: 1.0"),
+    (["matrix", "pybullet", "1.0", "no-such-scene"], "no-such-scene"),
+])
+def test_bad_input_is_one_line_and_exit_2(args, says, capsys, tmp_path):
+    assert cli.main(args + ["--out", str(tmp_path / "out"), "--envs", str(tmp_path / "envs")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and says in err, err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "envs").exists()
+
+
+def test_an_unwritable_out_or_envs_folder_is_refused(capsys, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    for option in ("--out", "--envs"):
+        paths = {"--out": str(tmp_path / "out"), "--envs": str(tmp_path / "envs"), option: str(blocker / "x")}
+        assert cli.main(["matrix", "pybullet", "1.0", "fourbar-seed", *[w for kv in paths.items() for w in kv]]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"cannot write {blocker / 'x'}" in err, err
+
+
+def test_versions_then_scenarios():
+    assert parse_items(["3.3.7", "4.0.0", "fourbar-seed", "x.toml"]) == (["3.3.7", "4.0.0"], ["fourbar-seed", "x.toml"])
+    with pytest.raises(UsageError, match="not a release number"):
+        parse_items(["4.0.0", "4.0.0rc1.x"])
+
+
+def test_pip_reason_keeps_errors_on_one_line():
+    stderr = textwrap.dedent("""\
+        WARNING: Location 'file:///x' is ignored
+        ERROR: Could not find a version that satisfies the requirement a==9 (from versions: 1.0)
+        ERROR: No matching distribution found for a==9
+    """)
+    assert release_envs.pip_reason(stderr) == ("Could not find a version that satisfies the requirement a==9 "
+                                               "(from versions: 1.0) No matching distribution found for a==9")

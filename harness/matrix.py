@@ -168,7 +168,8 @@ def change_rows(old: ReleaseResult, new: ReleaseResult, references: dict[str, Si
         base = dict(old=old.version, new=new.version, scenario=run.scenario, setting=run.setting)
         previous = before.get((run.scenario, run.setting))
         if previous is None or previous.baseline is None or run.baseline is None:
-            why = run.error or (previous.error if previous is not None else f"no run in {old.version}")
+            why = run.error or (f"{old.version}: {previous.error}" if previous is not None
+                                else f"no run in {old.version}")
             rows.append(dict(base, verdict="failed" if run.error else "n/a", reason=why))
             continue
         signals = bl.compare_to_baseline(previous.baseline.signals, run.baseline.signals, rtol,

@@ -56,9 +56,13 @@ def _change_cell(change: pd.Series | None, accuracy: pd.DataFrame) -> dict:
         return _first_cell(accuracy) if not accuracy.empty else dict(verdict="—", detail="", css="missing",
                                                                       title="no run", rank="")
     verdict = change["verdict"]
-    if verdict in ("failed", "n/a"):
-        return dict(verdict="run failed" if verdict == "failed" else "n/a", detail=str(change["reason"])[:80],
-                    css="bad" if verdict == "failed" else "missing", title=str(change["reason"]), rank=verdict)
+    if verdict == "failed":
+        return dict(verdict="run failed", detail=str(change["reason"])[:80], css="bad", title=str(change["reason"]),
+                    rank=verdict)
+    if verdict == "n/a":        # this release ran the scene, the previous one did not
+        cell = _first_cell(accuracy)
+        return dict(cell, detail=f"{cell['detail']}; nothing to compare with: {change['reason']}"[:160],
+                    title=str(change["reason"]), rank="n/a")
     out_of_tolerance = not accuracy.empty and (accuracy["verdict"] == "fail").any()
     tolerance = "; out of tolerance" if out_of_tolerance else "; within tolerance"
     if verdict == "bit-identical":
@@ -131,9 +135,12 @@ def summary_markdown(engine: str, releases: pd.DataFrame, changes: pd.DataFrame)
                   "|---|---|---|---|---|---|"]
         for c in changes.itertuples():
             size = getattr(c, "size", np.nan)
-            lines.append(f"| {c.old} → {c.new} | {_label(c.scenario, c.setting)} | {c.verdict} | "
-                         f"{'' if pd.isna(size) else f'{size:.3g}'} | {getattr(c, 'signal', '') or ''} | "
-                         f"{getattr(c, 'accuracy', '') or ''} |")
+            if pd.isna(size):
+                lines.append(f"| {c.old} → {c.new} | {_label(c.scenario, c.setting)} | {c.verdict}: "
+                             f"{str(c.reason)[:200]} | | | |")
+                continue
+            lines.append(f"| {c.old} → {c.new} | {_label(c.scenario, c.setting)} | {c.verdict} | {size:.3g} | "
+                         f"{c.signal} | {c.accuracy} |")
     return "\n".join(lines) + "\n"
 
 

@@ -29,6 +29,7 @@ from mechval.harness import baseline_store as store
 from mechval.harness import cli, release_envs
 from mechval.harness.matrix import parse_items
 from mechval.harness.preflight import UsageError
+from mechval.harness.runner import references_for
 from mechval.scenarios import load
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -224,3 +225,58 @@ def test_pip_reason_keeps_errors_on_one_line():
     """)
     assert release_envs.pip_reason(stderr) == ("Could not find a version that satisfies the requirement a==9 "
                                                "(from versions: 1.0) No matching distribution found for a==9")
+
+
+#: Built-ins with committed MuJoCo 3.3.7 and 4.0.0 baselines (baselines/mujoco/).
+MUJOCO_SCENES = ("fourbar-seed", "fourbar-crossed")
+#: A built-in whose MuJoCo model, as this mechval writes it, 3.3.7 cannot
+#: compile (measured: every scene with a slide joint; its committed 3.3.7
+#: baselines were recorded by an earlier adapter): 3.3.7's XML parser
+#: refuses the slide joint's axis, 4.0.0 takes it.
+REFUSED_BY_3_3_7 = "slider-crank"
+
+
+@pytest.mark.slow
+@pytest.mark.engine
+def test_two_mujoco_releases(tmp_path):
+    """`mechval matrix mujoco 3.3.7 4.0.0` from the package index: each
+    release's runs agree with its committed baseline (baseline check's
+    rule), and the change and the accuracy the matrix reports are those
+    derived here from the two committed baselines. A scene 3.3.7 cannot
+    load is a failed run with MuJoCo's reason, and the exit status is 1."""
+    out, root = tmp_path / "report", ROOT / "baselines"
+    run = subprocess.run([sys.executable, "-m", "mechval.harness.cli", "matrix", "mujoco", "3.3.7", "4.0.0",
+                          *MUJOCO_SCENES, REFUSED_BY_3_3_7, "--out", str(out), "--envs", str(tmp_path / "envs")],
+                         capture_output=True, text=True, timeout=1800, cwd=ROOT)
+    assert run.returncode == 1, run.stdout[-3000:] + run.stderr[-3000:]
+    failed = pd.read_csv(out / "accuracy.csv", keep_default_na=False, dtype={"version": str})
+    failed = failed[failed["class"] == "(run)"]
+    assert set(zip(failed["version"], failed["scenario"])) == {("3.3.7", REFUSED_BY_3_3_7)}, failed
+    assert all("MuJoCo cannot compile the model" in r and "attribute 'axis'" in r for r in failed["reason"])
+    changes = pd.read_csv(out / "changes.csv", keep_default_na=False, dtype={"old": str, "new": str})
+    assert (changes[changes["scenario"] == REFUSED_BY_3_3_7]["verdict"] == "n/a").all()
+    changes = changes[changes["scenario"] != REFUSED_BY_3_3_7]
+    accuracy = pd.read_csv(out / "accuracy.csv", keep_default_na=False, dtype={"version": str})
+    assert len(changes) == 2 * len(MUJOCO_SCENES)       # default and high-accuracy
+    for change in changes.itertuples():
+        committed = {v: store.load(store.baseline_path(root, "mujoco", v, change.scenario, change.setting))
+                     for v in ("3.3.7", "4.0.0")}
+        for version, stored in committed.items():
+            ran = store.load(store.baseline_path(out / "signals", "mujoco", version, change.scenario, change.setting))
+            rows = bl.compare_to_baseline(stored.signals, ran.signals, sensitivity=stored.sensitivity)
+            assert not bl.regressed(rows), rows[rows["verdict"] == "regression"]
+        rows = bl.compare_to_baseline(committed["3.3.7"].signals, committed["4.0.0"].signals,
+                                      sensitivity=committed["3.3.7"].sensitivity)
+        moved = rows[rows["verdict"] != "identical"]
+        assert change.verdict == "changed" and bl.regressed(rows)
+        assert float(change.size) == pytest.approx(moved["relative"].max(), rel=1e-6)
+        assert change.signal == moved.loc[moved["relative"].idxmax(), "signal"]
+        scenario = load(change.scenario)
+        reference = references_for([scenario])[scenario.name]
+        expected = bl.accuracy_change(reference, committed["3.3.7"].signals, committed["4.0.0"].signals,
+                                      scenario.tolerance_for("mujoco")).set_index("class")
+        mine = accuracy[(accuracy["scenario"] == change.scenario) & (accuracy["setting"] == change.setting)]
+        for cls, row in expected.iterrows():
+            got = mine[mine["class"] == cls].set_index("version")["error"].astype(float)
+            assert got["3.3.7"] == pytest.approx(row["old"], rel=1e-6) and got["4.0.0"] == pytest.approx(row["new"], rel=1e-6)
+            assert getattr(change, cls).endswith(f"({row['verdict']})")

@@ -31,6 +31,7 @@ from mechval.model.scenario import Scenario
 from mechval.engines.registry import REFERENCE, UnknownEngine, engine_names
 from mechval.scenarios import builtin_path
 from mechval.records.signals import Signals
+from mechval.reports.build import provenance
 
 from . import baseline as bl
 from . import baseline_store as store
@@ -67,6 +68,8 @@ class ReleaseJob:
     scenarios: tuple[ScenarioFile, ...]
     workers: int
     timeout: float
+    #: This mechval's commit, recorded with every run.
+    commit: str = ""
 
 
 @dataclass(frozen=True)
@@ -121,7 +124,7 @@ def release_job(job: ReleaseJob) -> ReleaseResult:
         out = Path(tmp) / "out"
         out.mkdir()
         command = [str(envs.python_of(env)), "-m", "mechval.harness.release_run", job.engine, str(out), *names,
-                   "--workers", str(job.workers), "--timeout", str(job.timeout)]
+                   "--workers", str(job.workers), "--timeout", str(job.timeout), "--commit", job.commit]
         done = subprocess.run(command, capture_output=True, text=True, env=envs.clean_environ(), cwd=tmp)
         if done.returncode != 0 or not (out / "result.json").exists():
             reason = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])[-1]
@@ -238,7 +241,7 @@ def matrix_command(engine: str, items: list[str], out: Path | None, envs_dir: Pa
         wheel_bytes, digest = wheel.read_bytes(), envs.wheel_digest(wheel)
     jobs = [ReleaseJob(engine, envs.Release(distribution, v, requirements, tuple(find_links or ())),
                        str(envs_dir), wheel_bytes, digest, tuple(_scenario_file(s) for s in chosen),
-                       worker_count(workers), timeout) for v in versions]
+                       worker_count(workers), timeout, provenance()["commit"]) for v in versions]
     results = run_jobs(jobs, dask, dask_connect_timeout, timeout)
     by_name = {s.name: s for s in chosen}
     accuracy = pd.DataFrame([row for r in results for row in accuracy_rows(r, references, by_name, engine)])

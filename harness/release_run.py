@@ -2,6 +2,7 @@
 (`mechval.harness.release_envs`): what `mechval matrix` starts there as
 
     ENV/bin/python -m mechval.harness.release_run ENGINE OUT SCENARIO... [--workers N] [--timeout S]
+                                                  [--commit C]
 
 Every scenario × the engine's variants runs through the same worker
 isolation as `mechval baseline save` (`runner.run_tasks`, one process per
@@ -50,8 +51,10 @@ class ReleaseRun:
     cpu_time: float = 0.0
 
 
-def run_release(engine: str, out: Path, scenarios: list[str], workers: int, timeout: float) -> dict:
-    """Run and store every task; the content of result.json."""
+def run_release(engine: str, out: Path, scenarios: list[str], workers: int, timeout: float,
+                commit: str = "") -> dict:
+    """Run and store every task; the content of result.json. `commit`: the
+    caller's (the installed wheel lies outside any checkout)."""
     try:
         adapter(engine)
     except EngineUnavailable as exc:
@@ -59,7 +62,7 @@ def run_release(engine: str, out: Path, scenarios: list[str], workers: int, time
     engine_version = type(adapter(engine)).version()
     plans = [prepare(load_scenario(name), [engine]) for name in scenarios]
     tasks = tasks_for(plans, [engine])
-    meta = provenance()
+    meta = {**provenance(), **({"commit": commit} if commit else {})}
     runs = []
     for outcome in run_tasks(tasks, workers=worker_count(workers), timeout=timeout, body=sensitive_task):
         task, row = outcome.task, {"scenario": outcome.task.scenario.name, "setting": outcome.task.setting,
@@ -108,8 +111,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("scenarios", nargs="+")
     parser.add_argument("--workers", type=int, default=0)
     parser.add_argument("--timeout", type=float, default=900.0)
+    parser.add_argument("--commit", default="")
     args = parser.parse_args(argv)
-    result = run_release(args.engine, args.out, args.scenarios, args.workers, args.timeout)
+    result = run_release(args.engine, args.out, args.scenarios, args.workers, args.timeout, args.commit)
     (args.out / RESULT).write_text(json.dumps(result, indent=2), encoding="utf-8")
     return 0
 

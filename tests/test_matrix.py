@@ -14,6 +14,7 @@ from __future__ import annotations
 import base64
 import hashlib
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -80,7 +81,7 @@ def _digest(text: str) -> str:
 
 
 @pytest.fixture(scope="session")
-def fake(tmp_path_factory) -> dict[str, Path]:
+def fake(tmp_path_factory):
     """The fake's wheels at 1.0 and 2.0, release 1.0 unpacked into a folder
     of its own (so that the calling mechval knows the engine), and the
     session's environments folder."""
@@ -91,7 +92,9 @@ def fake(tmp_path_factory) -> dict[str, Path]:
         _wheel(wheels, version, gain)
     with zipfile.ZipFile(wheels / "mechval_fake_release-1.0-py3-none-any.whl") as first:
         first.extractall(site)
-    return {"wheels": wheels, "site": site, "envs": root / "envs"}
+    yield {"wheels": wheels, "site": site, "envs": root / "envs"}
+    # The environments hold ~25,000 files: removed now, not by a later session.
+    shutil.rmtree(root / "envs", ignore_errors=True)
 
 
 def mechval(fake: dict[str, Path], *args: str) -> subprocess.CompletedProcess:
@@ -245,9 +248,12 @@ def test_two_mujoco_releases(tmp_path):
     derived here from the two committed baselines. A scene 3.3.7 cannot
     load is a failed run with MuJoCo's reason, and the exit status is 1."""
     out, root = tmp_path / "report", ROOT / "baselines"
-    run = subprocess.run([sys.executable, "-m", "mechval.harness.cli", "matrix", "mujoco", "3.3.7", "4.0.0",
-                          *MUJOCO_SCENES, REFUSED_BY_3_3_7, "--out", str(out), "--envs", str(tmp_path / "envs")],
-                         capture_output=True, text=True, timeout=1800, cwd=ROOT)
+    try:
+        run = subprocess.run([sys.executable, "-m", "mechval.harness.cli", "matrix", "mujoco", "3.3.7", "4.0.0",
+                              *MUJOCO_SCENES, REFUSED_BY_3_3_7, "--out", str(out), "--envs", str(tmp_path / "envs")],
+                             capture_output=True, text=True, timeout=1800, cwd=ROOT)
+    finally:
+        shutil.rmtree(tmp_path / "envs", ignore_errors=True)
     assert run.returncode == 1, run.stdout[-3000:] + run.stderr[-3000:]
     failed = pd.read_csv(out / "accuracy.csv", keep_default_na=False, dtype={"version": str})
     failed = failed[failed["class"] == "(run)"]
@@ -280,3 +286,23 @@ def test_two_mujoco_releases(tmp_path):
             got = mine[mine["class"] == cls].set_index("version")["error"].astype(float)
             assert got["3.3.7"] == pytest.approx(row["old"], rel=1e-6) and got["4.0.0"] == pytest.approx(row["new"], rel=1e-6)
             assert getattr(change, cls).endswith(f"({row['verdict']})")
+
+
+@pytest.mark.slow
+def test_on_dask_each_release_is_a_task_and_the_report_is_the_same(fake, fake_matrix, tmp_path):
+    """--dask: each release's job runs on a worker of a LocalCluster
+    (processes), finding the session's environments in --envs there; the
+    tables are those of the local run, number for number."""
+    from distributed import LocalCluster
+    local_run, local = fake_matrix
+    out = tmp_path / "report"
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        run = mechval(fake, "matrix", ENGINE, "1.0", "3.0", "2.0", "fourbar-seed", "--out", str(out),
+                      "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]), "--workers", "2",
+                      "--dask", cluster.scheduler_address)
+    assert run.returncode == local_run.returncode == 1, run.stderr[-3000:]
+    for name in ("releases.csv", "accuracy.csv", "changes.csv"):
+        mine, theirs = (pd.read_csv(folder / name, keep_default_na=False, dtype=str) for folder in (out, local))
+        if name == "releases.csv":      # the same environments, found again
+            mine, theirs = mine.drop(columns="status"), theirs.drop(columns="status")
+        pd.testing.assert_frame_equal(mine, theirs)

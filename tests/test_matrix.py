@@ -38,33 +38,37 @@ ENGINE, DISTRIBUTION = "fakerelease", "mechval-fake-release"
 #: What release 2.0 of the fake does differently: A.Fx, the ground pivot's
 #: force, GAIN times the reference's (1.0 keeps it exact).
 GAIN = 1.001
-FAKE = '''
-"""A fake engine library at release {version}, with its mechval adapter."""
+#: Release 1.5 installs but its engine library does not import.
+BROKEN = "libfakeengine.so: cannot open shared object file"
+ADAPTER = '''
+"""The fake engine's mechval adapter, shipped with the library."""
 from mechval.engines.base import EngineAdapter, RawRun
 from mechval.reference.adapter import raw_reference
 
 
 class FakeAdapter(EngineAdapter):
     name = "fakerelease"
-    library = "mechval_fake_release"
+    library = "mechval_fake_release_core"
     distribution = "mechval-fake-release"
 
     def default_settings(self, mechanism, times):
-        return {{"timestep": 1e-3}}
+        return {"timestep": 1e-3}
 
     def run(self, mechanism, times, settings):
+        from mechval_fake_release_core import GAIN
         raw = raw_reference(mechanism, times)
-        raw["A.Fx"] *= {gain!r}
+        raw["A.Fx"] *= GAIN
         return RawRun(raw)
 '''
 ENTRY_POINTS = "[mechval.engines]\nfakerelease = mechval_fake_release:FakeAdapter\n"
 
 
-def _wheel(folder: Path, version: str, gain: float) -> Path:
-    """The fake's wheel, written as a zip (PEP 427: its module, its
-    dist-info and a RECORD of both), with no build backend to wait for."""
+def _wheel(folder: Path, version: str, core: str) -> Path:
+    """The fake's wheel at `version`, its engine library `core` (the text
+    of mechval_fake_release_core), written as a zip (PEP 427: its modules,
+    its dist-info and a RECORD of them) with no build backend to wait for."""
     info = f"mechval_fake_release-{version}.dist-info"
-    files = {"mechval_fake_release/__init__.py": FAKE.format(version=version, gain=gain),
+    files = {"mechval_fake_release/__init__.py": ADAPTER, "mechval_fake_release_core/__init__.py": core,
              f"{info}/METADATA": f"Metadata-Version: 2.1\nName: {DISTRIBUTION}\nVersion: {version}\n",
              f"{info}/WHEEL": "Wheel-Version: 1.0\nGenerator: mechval-tests\nRoot-Is-Purelib: true\nTag: py3-none-any\n",
              f"{info}/entry_points.txt": ENTRY_POINTS}
@@ -82,14 +86,14 @@ def _digest(text: str) -> str:
 
 @pytest.fixture(scope="session")
 def fake(tmp_path_factory):
-    """The fake's wheels at 1.0 and 2.0, release 1.0 unpacked into a folder
+    """The fake's wheels at 1.0, 1.5 and 2.0, release 1.0 unpacked into a folder
     of its own (so that the calling mechval knows the engine), and the
     session's environments folder."""
     root = tmp_path_factory.mktemp("fake-release")
     wheels, site = root / "wheels", root / "site"
     wheels.mkdir()
-    for version, gain in (("1.0", 1.0), ("2.0", GAIN)):
-        _wheel(wheels, version, gain)
+    for version, core in (("1.0", "GAIN = 1.0\n"), ("1.5", f"raise ImportError({BROKEN!r})\n"), ("2.0", f"GAIN = {GAIN!r}\n")):
+        _wheel(wheels, version, core)
     with zipfile.ZipFile(wheels / "mechval_fake_release-1.0-py3-none-any.whl") as first:
         first.extractall(site)
     yield {"wheels": wheels, "site": site, "envs": root / "envs"}
@@ -105,18 +109,21 @@ def mechval(fake: dict[str, Path], *args: str) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="session")
 def fake_matrix(fake, tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
-    """`mechval matrix fakerelease 1.0 3.0 2.0 fourbar-seed`: 3.0 exists nowhere."""
+    """`mechval matrix fakerelease 1.0 1.5 3.0 2.0 fourbar-seed`: 1.5 does
+    not import, 3.0 exists nowhere."""
     out = tmp_path_factory.mktemp("matrix") / "report"
-    run = mechval(fake, "matrix", ENGINE, "1.0", "3.0", "2.0", "fourbar-seed", "--out", str(out),
+    run = mechval(fake, "matrix", ENGINE, "1.0", "1.5", "3.0", "2.0", "fourbar-seed", "--out", str(out),
                   "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]), "--workers", "2")
     return run, out
 
 
-def test_a_release_that_cannot_be_installed_is_a_row_with_the_reason(fake_matrix):
+def test_a_release_that_cannot_be_installed_or_imported_is_a_row_with_the_reason(fake_matrix):
     run, out = fake_matrix
     assert run.returncode == 1, run.stderr[-3000:]      # a release did not run
     releases = pd.read_csv(out / "releases.csv", keep_default_na=False, dtype={"version": str}).set_index("version")
-    assert list(releases.index) == ["1.0", "3.0", "2.0"]
+    assert list(releases.index) == ["1.0", "1.5", "3.0", "2.0"]
+    assert releases.loc["1.5", "status"] == (f"not importable: {ENGINE}: mechval_fake_release_core cannot be "
+                                             f"imported (ImportError: {BROKEN})")
     assert releases.loc["1.0", "status"] == releases.loc["2.0", "status"] == "ok"
     assert releases.loc["3.0", "status"].startswith(f"not installed: cannot install {DISTRIBUTION} 3.0: ")
     assert "mechval-fake-release==3.0" in releases.loc["3.0", "status"]
@@ -126,7 +133,7 @@ def test_a_release_that_cannot_be_installed_is_a_row_with_the_reason(fake_matrix
 
 
 def test_the_change_between_releases_and_its_size(fake_matrix):
-    """1.0 → 2.0 (3.0 did not run): one signal family changed, by
+    """1.0 → 2.0 (1.5 and 3.0 did not run): one signal family changed, by
     GAIN − 1 of its peak, and the force class got worse; the others are
     bit-identical."""
     run, out = fake_matrix
@@ -164,8 +171,8 @@ def test_environments_are_cached_and_isolated(fake):
     library (nor the caller's packages), and is reused as it is."""
     envs = sorted(p.name for p in fake["envs"].iterdir() if not p.name.startswith("."))
     python = f"py{sys.version_info.major}.{sys.version_info.minor}"
-    assert envs == [f"{DISTRIBUTION}-1.0-{python}", f"{DISTRIBUTION}-2.0-{python}"]
-    env = fake["envs"] / envs[1]
+    assert envs == [f"{DISTRIBUTION}-{v}-{python}" for v in ("1.0", "1.5", "2.0")]
+    env = fake["envs"] / envs[-1]
     code = ("import importlib.metadata as m, importlib.util as u, sys; "
             "print(m.version('mechval-fake-release'), [n for n in ('mujoco', 'pybullet', 'exudyn', 'pytest') "
             "if u.find_spec(n)], sys.flags.no_user_site)")
@@ -297,7 +304,7 @@ def test_on_dask_each_release_is_a_task_and_the_report_is_the_same(fake, fake_ma
     local_run, local = fake_matrix
     out = tmp_path / "report"
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        run = mechval(fake, "matrix", ENGINE, "1.0", "3.0", "2.0", "fourbar-seed", "--out", str(out),
+        run = mechval(fake, "matrix", ENGINE, "1.0", "1.5", "3.0", "2.0", "fourbar-seed", "--out", str(out),
                       "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]), "--workers", "2",
                       "--dask", cluster.scheduler_address)
     assert run.returncode == local_run.returncode == 1, run.stderr[-3000:]

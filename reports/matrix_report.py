@@ -12,6 +12,7 @@ accuracy, reason, one column per class: from one release to the next).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -35,13 +36,21 @@ def _label(scenario: str, setting: str) -> str:
     return scenario if setting == "default" else f"{scenario} [{setting}]"
 
 
+def brief(reason: str, length: int = 130) -> str:
+    """A failure's reason for a cell: without the scenario file's path that
+    a scenario error starts with (the cause follows it), at most `length`
+    characters (the cell's title holds it whole)."""
+    text = re.sub(r"(\w+Error: )?\S+\.toml: ", "", str(reason), count=1)
+    return text if len(text) <= length else text[:length - 1] + "…"
+
+
 def _first_cell(accuracy: pd.DataFrame) -> dict:
     """A scene's cell in the first release that ran it: its accuracy."""
     if accuracy.empty:
         return dict(verdict="—", detail="", css="missing", title="no run", rank="")
     if (accuracy["class"] == "(run)").any():
         reason = str(accuracy["reason"].iloc[0])
-        return dict(verdict="run failed", detail=reason[:80], css="bad", title=reason, rank="fail")
+        return dict(verdict="run failed", detail=brief(reason), css="bad", title=reason, rank="fail")
     worst = accuracy.loc[accuracy["error"].idxmax()]
     failed = accuracy[accuracy["verdict"] == "fail"]
     detail = f"max {worst['error']:.2g} ({worst['class']})"
@@ -57,11 +66,11 @@ def _change_cell(change: pd.Series | None, accuracy: pd.DataFrame) -> dict:
                                                                       title="no run", rank="")
     verdict = change["verdict"]
     if verdict == "failed":
-        return dict(verdict="run failed", detail=str(change["reason"])[:80], css="bad", title=str(change["reason"]),
+        return dict(verdict="run failed", detail=brief(change["reason"]), css="bad", title=str(change["reason"]),
                     rank=verdict)
     if verdict == "n/a":        # this release ran the scene, the previous one did not
         cell = _first_cell(accuracy)
-        return dict(cell, detail=f"{cell['detail']}; nothing to compare with: {change['reason']}"[:160],
+        return dict(cell, detail=f"{cell['detail']}; nothing to compare with ({change['old']} did not run it)",
                     title=str(change["reason"]), rank="n/a")
     out_of_tolerance = not accuracy.empty and (accuracy["verdict"] == "fail").any()
     tolerance = "; out of tolerance" if out_of_tolerance else "; within tolerance"
@@ -137,7 +146,7 @@ def summary_markdown(engine: str, releases: pd.DataFrame, changes: pd.DataFrame)
             size = getattr(c, "size", np.nan)
             if pd.isna(size):
                 lines.append(f"| {c.old} → {c.new} | {_label(c.scenario, c.setting)} | {c.verdict}: "
-                             f"{str(c.reason)[:200]} | | | |")
+                             f"{brief(c.reason, 150)} | | | |")
                 continue
             lines.append(f"| {c.old} → {c.new} | {_label(c.scenario, c.setting)} | {c.verdict} | {size:.3g} | "
                          f"{c.signal} | {c.accuracy} |")

@@ -31,6 +31,7 @@ from mechval.harness import cli, release_envs
 from mechval.harness.matrix import parse_items
 from mechval.harness.preflight import UsageError
 from mechval.harness.runner import references_for
+from mechval.reports.matrix_report import brief
 from mechval.scenarios import load
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -313,3 +314,12 @@ def test_on_dask_each_release_is_a_task_and_the_report_is_the_same(fake, fake_ma
         if name == "releases.csv":      # the same environments, found again
             mine, theirs = mine.drop(columns="status"), theirs.drop(columns="status")
         pd.testing.assert_frame_equal(mine, theirs)
+
+
+def test_a_cell_gives_the_cause_of_a_failure_first():
+    reason = ("ScenarioError: /home/u/.cache/mechval/envs/mujoco-3.3.7-py3.11/lib/python3.11/site-packages/mechval/"
+              "scenarios/slider-crank.toml: engines.mujoco: mujoco: MuJoCo cannot compile the model (XML Error: "
+              "number is too large in attribute 'axis' Element 'joint', line 14)")
+    assert brief(reason, 1000) == reason[reason.index("engines.mujoco"):]
+    assert brief(f"3.3.7: {reason}", 1000) == "3.3.7: " + reason[reason.index("engines.mujoco"):]
+    assert len(brief(reason, 40)) == 40 and brief(reason, 40).endswith("…")

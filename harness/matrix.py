@@ -42,6 +42,9 @@ from .preflight import UsageError, check_out_dir, chosen_scenarios, worker_count
 from .release_run import ReleaseRun, read_result, signals_of
 from .runner import references_for
 
+#: The most variants an engine's runs of one scene are counted for when
+#: bounding a release's job on Dask (mechval's engines have two).
+VARIANTS = 4
 #: A cell's change verdicts, by the rule of `baseline check`.
 IDENTICAL, WITHIN, CHANGED = "bit-identical", "within", "changed"
 
@@ -113,10 +116,10 @@ def release_job(job: ReleaseJob) -> ReleaseResult:
         except envs.ReleaseUnavailable as exc:
             return ReleaseResult(version, f"not installed: {exc}")
         names = []
-        for scenario in job.scenarios:
-            if scenario.text:
-                path = Path(tmp, "scenarios", scenario.file_name)
-                path.parent.mkdir(exist_ok=True)
+        for k, scenario in enumerate(job.scenarios):
+            if scenario.text:       # a folder each: two files of one name from two folders stay apart
+                path = Path(tmp, "scenarios", str(k), scenario.file_name)
+                path.parent.mkdir(parents=True)
                 path.write_text(scenario.text, encoding="utf-8")
                 names.append(str(path))
             else:
@@ -133,7 +136,7 @@ def release_job(job: ReleaseJob) -> ReleaseResult:
     if "unavailable" in result:
         return ReleaseResult(version, f"not importable: {result['unavailable']}")
     facts = {"imported": result["version"], "python": result["python"], **result["libraries"], "environment": str(env)}
-    if result["version"] != version:
+    if Version(result["version"]) != Version(version):     # 4.0 is 4.0.0
         return ReleaseResult(version, f"the environment imports {job.engine} {result['version']}, not {version}", facts)
     return ReleaseResult(version, "", facts, tuple(runs))
 
@@ -287,8 +290,11 @@ def run_jobs(jobs: list[ReleaseJob], dask: str | None, connect_timeout: float, t
             print(f"release {job.release.version}: environment and runs …", file=sys.stderr, flush=True)
             results.append(release_job(job))
         return results
-    # A release's job runs all its tasks: its timeout is theirs together.
-    executor = executor_for(dask, 1, timeout * 100, connect_timeout)
+    # A release's job installs, then runs every scene at each of the
+    # engine's variants (the caller may not import the adapter to count
+    # them): it is given pip's time and the runs' at up to VARIANTS each.
+    executor = executor_for(dask, 1, envs.INSTALL_TIMEOUT + timeout * VARIANTS * len(jobs[0].scenarios),
+                            connect_timeout)
     done: list[Done] = executor.run(release_job, jobs)
     return [d.value if not d.error else ReleaseResult(job.release.version, f"its job failed: {d.error}")
             for job, d in zip(jobs, done)]

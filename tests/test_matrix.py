@@ -36,6 +36,8 @@ from mechval.scenarios import load
 
 ROOT = Path(__file__).resolve().parent.parent
 ENGINE, DISTRIBUTION = "fakerelease", "mechval-fake-release"
+#: The fake's scene: fourbar-seed under another name, from a file of its own.
+SCENE = "my-fourbar"
 #: What release 2.0 of the fake does differently: A.Fx, the ground pivot's
 #: force, GAIN times the reference's (1.0 keeps it exact).
 GAIN = 1.001
@@ -110,10 +112,14 @@ def mechval(fake: dict[str, Path], *args: str) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="session")
 def fake_matrix(fake, tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
-    """`mechval matrix fakerelease 1.0 1.5 3.0 2.0 fourbar-seed`: 1.5 does
-    not import, 3.0 exists nowhere."""
-    out = tmp_path_factory.mktemp("matrix") / "report"
-    run = mechval(fake, "matrix", ENGINE, "1.0", "1.5", "3.0", "2.0", "fourbar-seed", "--out", str(out),
+    """`mechval matrix fakerelease 1.0 1.5 3.0 2.0 SCENE.toml` (a file of
+    the user's, which the releases' jobs carry): 1.5 does not import, 3.0
+    exists nowhere."""
+    folder = tmp_path_factory.mktemp("matrix")
+    scene, out = folder / f"{SCENE}.toml", folder / "report"
+    scene.write_text((ROOT / "scenarios" / "fourbar-seed.toml").read_text(encoding="utf-8").replace(
+        'name = "fourbar-seed"', f'name = "{SCENE}"', 1), encoding="utf-8")
+    run = mechval(fake, "matrix", ENGINE, "1.0", "1.5", "3.0", "2.0", str(scene), "--out", str(out),
                   "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]), "--workers", "2")
     return run, out
 
@@ -141,15 +147,14 @@ def test_the_change_between_releases_and_its_size(fake_matrix):
     changes = pd.read_csv(out / "changes.csv", keep_default_na=False, dtype={"old": str, "new": str})
     assert len(changes) == 1, changes
     change = changes.iloc[0]
-    assert (change["old"], change["new"], change["scenario"], change["verdict"]) == ("1.0", "2.0", "fourbar-seed",
-                                                                                     "changed")
+    assert (change["old"], change["new"], change["scenario"], change["verdict"]) == ("1.0", "2.0", SCENE, "changed")
     assert change["size"] == pytest.approx(GAIN - 1, rel=1e-9)
     assert change["accuracy"] == "worse" and change["force"].endswith("(worsened)")
     assert change["angle"].endswith("(unchanged)")
     # Derived here from the stored signals of both releases: exactly the
     # ground pivot's x force (and the resultants made from it) moved.
-    old = store.load(out / "signals" / ENGINE / "1.0" / "fourbar-seed" / "default.csv").signals
-    new = store.load(out / "signals" / ENGINE / "2.0" / "fourbar-seed" / "default.csv").signals
+    old = store.load(out / "signals" / ENGINE / "1.0" / SCENE / "default.csv").signals
+    new = store.load(out / "signals" / ENGINE / "2.0" / SCENE / "default.csv").signals
     moved = [c for c in old.frame.columns if not np.array_equal(old[c], new[c])]
     assert moved and all("x" in c or c.startswith("F") for c in moved), moved
     assert change["changed_signals"] == len(moved)
@@ -305,8 +310,8 @@ def test_on_dask_each_release_is_a_task_and_the_report_is_the_same(fake, fake_ma
     local_run, local = fake_matrix
     out = tmp_path / "report"
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        run = mechval(fake, "matrix", ENGINE, "1.0", "1.5", "3.0", "2.0", "fourbar-seed", "--out", str(out),
-                      "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]), "--workers", "2",
+        run = mechval(fake, "matrix", ENGINE, "1.0", "1.5", "3.0", "2.0", str(local.parent / f"{SCENE}.toml"),
+                      "--out", str(out), "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]), "--workers", "2",
                       "--dask", cluster.scheduler_address)
     assert run.returncode == local_run.returncode == 1, run.stderr[-3000:]
     for name in ("releases.csv", "accuracy.csv", "changes.csv"):

@@ -100,7 +100,8 @@ def parse_items(items: list[str]) -> tuple[list[str], list[str]]:
     if not versions:
         raise UsageError("name at least one release (e.g. mechval matrix mujoco 3.3.7 4.0.0)")
     if len(set(versions)) != len(versions):
-        raise UsageError(f"release given twice: {', '.join(dict.fromkeys(v for v in versions if versions.count(v) > 1))}")
+        twice = dict.fromkeys(v for v in versions if versions.count(v) > 1)
+        raise UsageError(f"release given twice: {', '.join(twice)}")
     return versions, items[len(versions):]
 
 

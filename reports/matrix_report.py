@@ -137,7 +137,8 @@ def accuracy_table(accuracy: pd.DataFrame) -> Markup:
 
 
 def summary_markdown(engine: str, releases: pd.DataFrame, changes: pd.DataFrame) -> str:
-    lines = [f"# mechval release matrix: {engine}", "", "| release | status | runs | failed runs |", "|---|---|---|---|"]
+    lines = [f"# mechval release matrix: {engine}", "", "| release | status | runs | failed runs |",
+             "|---|---|---|---|"]
     lines += [f"| {r.version} | {r.status} | {r.runs} | {r.failed} |" for r in releases.itertuples()]
     if len(changes):
         lines += ["", "| from → to | scene [setting] | verdict | size (of peak) | signal | accuracy |",

@@ -73,7 +73,8 @@ def _wheel(folder: Path, version: str, core: str) -> Path:
     info = f"mechval_fake_release-{version}.dist-info"
     files = {"mechval_fake_release/__init__.py": ADAPTER, "mechval_fake_release_core/__init__.py": core,
              f"{info}/METADATA": f"Metadata-Version: 2.1\nName: {DISTRIBUTION}\nVersion: {version}\n",
-             f"{info}/WHEEL": "Wheel-Version: 1.0\nGenerator: mechval-tests\nRoot-Is-Purelib: true\nTag: py3-none-any\n",
+             f"{info}/WHEEL": ("Wheel-Version: 1.0\nGenerator: mechval-tests\nRoot-Is-Purelib: true\n"
+                               "Tag: py3-none-any\n"),
              f"{info}/entry_points.txt": ENTRY_POINTS}
     record = "".join(f"{name},sha256={_digest(text)},{len(text.encode())}\n" for name, text in files.items())
     path = folder / f"mechval_fake_release-{version}-py3-none-any.whl"
@@ -95,7 +96,8 @@ def fake(tmp_path_factory):
     root = tmp_path_factory.mktemp("fake-release")
     wheels, site = root / "wheels", root / "site"
     wheels.mkdir()
-    for version, core in (("1.0", "GAIN = 1.0\n"), ("1.5", f"raise ImportError({BROKEN!r})\n"), ("2.0", f"GAIN = {GAIN!r}\n")):
+    cores = {"1.0": "GAIN = 1.0\n", "1.5": f"raise ImportError({BROKEN!r})\n", "2.0": f"GAIN = {GAIN!r}\n"}
+    for version, core in cores.items():
         _wheel(wheels, version, core)
     with zipfile.ZipFile(wheels / "mechval_fake_release-1.0-py3-none-any.whl") as first:
         first.extractall(site)
@@ -297,7 +299,8 @@ def test_two_mujoco_releases(tmp_path):
         mine = accuracy[(accuracy["scenario"] == change.scenario) & (accuracy["setting"] == change.setting)]
         for cls, row in expected.iterrows():
             got = mine[mine["class"] == cls].set_index("version")["error"].astype(float)
-            assert got["3.3.7"] == pytest.approx(row["old"], rel=1e-6) and got["4.0.0"] == pytest.approx(row["new"], rel=1e-6)
+            assert got["3.3.7"] == pytest.approx(row["old"], rel=1e-6)
+            assert got["4.0.0"] == pytest.approx(row["new"], rel=1e-6)
             assert getattr(change, cls).endswith(f"({row['verdict']})")
 
 
@@ -311,8 +314,8 @@ def test_on_dask_each_release_is_a_task_and_the_report_is_the_same(fake, fake_ma
     out = tmp_path / "report"
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         run = mechval(fake, "matrix", ENGINE, "1.0", "1.5", "3.0", "2.0", str(local.parent / f"{SCENE}.toml"),
-                      "--out", str(out), "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]), "--workers", "2",
-                      "--dask", cluster.scheduler_address)
+                      "--out", str(out), "--envs", str(fake["envs"]), "--find-links", str(fake["wheels"]),
+                      "--workers", "2", "--dask", cluster.scheduler_address)
     assert run.returncode == local_run.returncode == 1, run.stderr[-3000:]
     for name in ("releases.csv", "accuracy.csv", "changes.csv"):
         mine, theirs = (pd.read_csv(folder / name, keep_default_na=False, dtype=str) for folder in (out, local))

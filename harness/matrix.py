@@ -241,7 +241,10 @@ def matrix_command(engine: str, items: list[str], out: Path | None, envs_dir: Pa
     distribution = envs.engine_distribution(engine)
     references = references_for(chosen)
     with tempfile.TemporaryDirectory(prefix="mechval-wheel-") as tmp:
-        wheel = envs.build_wheel(Path(tmp))
+        try:
+            wheel = envs.build_wheel(Path(tmp))
+        except envs.ReleaseUnavailable as exc:      # e.g. a mechval installed from a wheel: no source to build
+            raise UsageError(f"cannot make this mechval installable into the releases' environments: {exc}") from None
         wheel_bytes, digest = wheel.read_bytes(), envs.wheel_digest(wheel)
     jobs = [ReleaseJob(engine, envs.Release(distribution, v, requirements, tuple(find_links or ())),
                        str(envs_dir), wheel_bytes, digest, tuple(_scenario_file(s) for s in chosen),

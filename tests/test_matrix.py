@@ -331,3 +331,14 @@ def test_a_cell_gives_the_cause_of_a_failure_first():
     assert brief(reason, 1000) == reason[reason.index("engines.mujoco"):]
     assert brief(f"3.3.7: {reason}", 1000) == "3.3.7: " + reason[reason.index("engines.mujoco"):]
     assert len(brief(reason, 40)) == 40 and brief(reason, 40).endswith("…")
+
+
+def test_without_a_source_tree_to_build_mechval_from_it_says_so(monkeypatch, capsys, tmp_path):
+    """A mechval installed from a wheel has no source tree beside it: one
+    line, exit 2, before any environment is made."""
+    monkeypatch.setattr(release_envs.mechval, "__file__", str(tmp_path / "site-packages" / "mechval" / "__init__.py"))
+    args = ["matrix", "pybullet", "1.0", "fourbar-seed", "--out", str(tmp_path / "out"), "--envs", str(tmp_path / "e")]
+    assert cli.main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no mechval source tree beside" in err, err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "e").exists()

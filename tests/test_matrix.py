@@ -342,3 +342,20 @@ def test_without_a_source_tree_to_build_mechval_from_it_says_so(monkeypatch, cap
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no mechval source tree beside" in err, err
     assert not (tmp_path / "out").exists() and not (tmp_path / "e").exists()
+
+
+def test_a_changed_mechval_only_reinstalls_mechval(fake, fake_matrix, tmp_path):
+    """An environment whose record names another mechval build gets this
+    one's wheel and a new record; the engine release stays as installed."""
+    env = fake["envs"] / f"{DISTRIBUTION}-1.5-py{sys.version_info.major}.{sys.version_info.minor}"
+    held = release_envs._read_record(env)
+    engine_file = release_envs._site_packages(env) / "mechval_fake_release_core" / "__init__.py"
+    before = engine_file.stat().st_ino
+    wheel = release_envs.build_wheel(tmp_path)
+    release = release_envs.Release(DISTRIBUTION, "1.5", tuple(held["requirements"]), (str(fake["wheels"]),))
+    assert release_envs.ensure_env(fake["envs"], release, wheel, "another-build") == env
+    assert release_envs._read_record(env) == {**held, "mechval": "another-build"}
+    assert engine_file.stat().st_ino == before
+    installed = subprocess.run([str(release_envs.python_of(env)), "-c", "import mechval.harness.release_run"],
+                               env=release_envs.clean_environ(), capture_output=True, text=True)
+    assert installed.returncode == 0, installed.stderr

@@ -173,6 +173,16 @@ def installed() -> dict[str, str]:
     return result
 
 
+def library_and_distribution(name: str) -> tuple[str, str]:
+    """The engine's library (import name) and its distribution, read from
+    the adapter's source where it names both, else from its class (which
+    imports the adapter module, not the library)."""
+    target = targets().get(name)
+    if target is None:
+        raise UnknownEngine(name)
+    return _named_library(target) or _library_of(name)
+
+
 def _library_of(name: str) -> tuple[str, str]:
     cls = adapter_class(name)
     return cls.library, cls.distribution

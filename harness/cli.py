@@ -9,6 +9,7 @@ module that does its work, imported only when that command runs (so that
     cost      harness/cost.py         cost_command
     baseline  harness/baseline_run.py baseline_command
     audit     harness/audit_run.py    audit_command
+    matrix    harness/matrix.py       matrix_command
     analyse   mechval.reference.analysis; export: mechval.scenarios.export
 """
 
@@ -89,6 +90,13 @@ def cmd_baseline(args) -> int:
     return baseline_command(args.action, args.scenarios, args.engine, args.dir, force=getattr(args, "force", False),
                             rtol=args.rtol if check else None, signal_rtol=args.signal_rtol if check else None,
                             workers=args.workers, limits=_limits(args))
+
+
+def cmd_matrix(args) -> int:
+    from .matrix import matrix_command
+    return matrix_command(args.engine, args.items, args.out, args.envs, workers=args.workers, timeout=args.timeout,
+                          dask=args.dask, dask_connect_timeout=args.dask_connect_timeout, find_links=args.find_links,
+                          rtol=args.rtol)
 
 
 def cmd_audit(args) -> int:
@@ -172,6 +180,24 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--rtol", type=_positive, help="max |change| / peak of a signal (default 1e-9)")
     q.add_argument("--signal-rtol", action="append", metavar="NAME=R", help="per-signal rtol (repeatable)")
     p.set_defaults(func=cmd_baseline)
+    p = sub.add_parser("matrix", usage="mechval matrix ENGINE VERSION... [SCENARIO...] [options]", help="the suite against several releases of one engine, each in its own "
+                                      "environment, and what each release changed")
+    p.add_argument("engine", metavar="ENGINE")
+    p.add_argument("items", nargs="+", metavar="VERSION|SCENARIO",
+                   help="releases (oldest first), then built-in names or .toml paths (default: the built-ins "
+                        "not tagged 'hard' or 'long')")
+    p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
+    p.add_argument("--envs", type=Path, metavar="DIR",
+                   help="where the releases' environments are kept (default: ~/.cache/mechval/envs)")
+    p.add_argument("--find-links", action="append", metavar="DIR_OR_URL",
+                   help="also look for the releases there (pip --find-links; repeatable)")
+    p.add_argument("--rtol", type=_positive, help="max |change| / peak counted as within (default 1e-9)")
+    p.add_argument("--workers", type=_count, default=0, help="worker processes per release (default: one per core)")
+    p.add_argument("--timeout", type=_positive, default=900.0, help="seconds before an engine run is killed")
+    p.add_argument("--dask", metavar="ADDRESS", help="run each release's job on the Dask scheduler at ADDRESS")
+    p.add_argument("--dask-connect-timeout", type=_positive, default=DASK_CONNECT_TIMEOUT, metavar="SECONDS",
+                   help=f"seconds to wait for the Dask scheduler to answer (default {DASK_CONNECT_TIMEOUT:g})")
+    p.set_defaults(func=cmd_matrix)
     p = sub.add_parser("audit", help="read back what each engine's model holds and compare it with the scene")
     p.add_argument("scenario", help="built-in scenario name or path to a .toml file")
     p.add_argument("--engine", action="append", help="engine to audit (repeatable; default: all installed)")

@@ -8,6 +8,7 @@ compares every result with the reference (computed once per scenario).
 
 from __future__ import annotations
 
+import os
 import time
 from typing import Callable, Iterable, Mapping
 
@@ -19,7 +20,7 @@ from mechval.records.outcome import Outcome, Task
 from mechval.model.scenario import Scenario, require_unique_names
 from mechval.records.signals import Signals
 
-from .executors import Done, LocalExecutor
+from .executors import Done, Executor, LocalExecutor
 from .plan import Plan, planned, scenario_of
 from .simulate import simulate
 
@@ -63,23 +64,23 @@ def tasks_for(scenarios: Iterable[Scenario | Plan], engines: Iterable[str]) -> l
     return tasks
 
 
-def run_tasks(tasks: list[Task], workers: int, timeout: float,
+def run_tasks(tasks: list[Task], workers: int = 0, timeout: float = 900.0,
               on_done: Callable[[Outcome], None] = lambda outcome: None,
-              body: Callable[[Task], tuple] = simulate_task) -> list[Outcome]:
+              body: Callable[[Task], tuple] = simulate_task, executor: Executor | None = None) -> list[Outcome]:
     """Run every task in a worker process (`body`: `simulate_task`, or one
-    that returns its figures and each signal's sensitivity); failures
-    become Outcomes, in the tasks' order. The runs with the most steps
-    start first, so that no long run is left to finish alone while the
-    other workers idle."""
+    that returns its figures and each signal's sensitivity) of `executor`
+    (default: a local pool of `workers`); failures become Outcomes, in the
+    tasks' order. The runs with the most steps start first, so that no
+    long run is left to finish alone while the other workers idle."""
     def outcome(task: Task, done: Done) -> Outcome:
         if done.error:
-            return Outcome(task, None, done.error)
+            return Outcome(task, None, done.error, worker=done.worker)
         signals, wall_time, cpu_time, *sensitivity = done.value
         return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time,
-                       sensitivity=sensitivity[0] if sensitivity else None)
+                       sensitivity=sensitivity[0] if sensitivity else None, worker=done.worker)
 
     order = longest_first(tasks)
-    results = LocalExecutor(workers, timeout).run(
+    results = (executor or LocalExecutor(workers or os.cpu_count() or 1, timeout)).run(
         body, [tasks[k] for k in order], lambda index, done: on_done(outcome(tasks[order[index]], done)))
     in_task_order = dict(zip(order, results))
     return [outcome(task, in_task_order[k]) for k, task in enumerate(tasks)]

@@ -8,6 +8,7 @@ it found. The command line only parses its arguments into `run_and_report`.
 from __future__ import annotations
 
 import contextlib
+import functools
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,7 @@ from tqdm import tqdm
 
 from mechval.judging.compare import passed
 from mechval.engines.findings import measure_findings
+from mechval.engines.registry import REFERENCE
 from mechval.records.outcome import Outcome
 from mechval.reports.audit import audit_section
 from mechval.reports.build import provenance, summary_markdown, write_report
@@ -31,11 +33,12 @@ from mechval.records.signals import Signals
 from .audit_run import audit_all
 from .cost import cost_sweep, points_for
 from .defaults import DASK_CONNECT_TIMEOUT, Limits
-from .executors import executor_for
-from .plan import prepare
+from .executors import Done, LocalExecutor, executor_for
+from .plan import Plan, prepare
 from .preflight import (check_dask_address, check_out_dir, check_runs, chosen_engines, chosen_scenarios,
                         default_out_dir, left_out, worker_count)
-from .runner import discrepancies, references_for, run_tasks, tasks_for
+from .runner import discrepancies, import_engines, run_alongside, scene_job, tasks_for
+from .simulate import simulate
 
 
 def _untimed(name: str):
@@ -55,6 +58,9 @@ class RunReport:
     folder: Path
     #: Built-ins a run of all of them left out (--skip-hard, no --long).
     left_out: list[str]
+    #: CPU time (s) of the work done alongside the engine runs: the
+    #: references, the model audit, the findings.
+    alongside_cpu_time: float = 0.0
 
     @property
     def passed(self) -> bool:
@@ -94,25 +100,26 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
                         for t in points_for(plan, e)], limits)
         out = out or default_out_dir()
         check_out_dir(out)
-    with phase("reference"):
-        references = references_for(plans)
+    # The engine runs, and alongside them, on the same workers, each scene's
+    # reference and model audit (which builds the models again and
+    # simulates nothing) and the engine findings measured on the installed
+    # versions: the main job's own work overlaps the engine runs.
     with phase("engine runs"), tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
                                     disable=quiet) as bar:
         def done(outcome):
             bar.set_postfix_str(one_line(outcome.task.label, 80) + (" FAILED" if outcome.error else ""),
                                 refresh=False)
             bar.update()
-        outcomes = run_tasks(tasks, on_done=done, executor=executor)
+        if isinstance(executor, LocalExecutor):
+            import_engines(engines)
+        jobs = [functools.partial(scene_job, plan.scenario, {e: plan.settings(e) for e in engines}) for plan in plans]
+        outcomes, side = run_alongside(tasks, jobs + [functools.partial(measure_findings, engines)], executor, done)
     with phase("comparison"):
+        references, audits, findings, drawings, alongside_cpu = _side_results(plans, engines, side)
         records = discrepancies(outcomes, references)
-    # The report: stability of the hard cases, the engine findings measured
-    # on the installed versions, the model audit (which builds the models
-    # again and simulates nothing), then the page and its files.
-    with phase("report: stability, findings"):
-        sections = [version_section(outcomes), stability_section(records, chosen),
-                    findings_section(measure_findings(engines))]
-    with phase("report: model audit"):
-        sections.append(audit_section(audit_all(plans, engines)))
+    with phase("report: sections"):
+        sections = [version_section(outcomes), stability_section(records, chosen), findings_section(findings),
+                    audit_section(audits)]
     sections, files = [s for s in sections if s], None
     if cost:
         with phase("cost sweep"):
@@ -120,8 +127,27 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
             sections.append(cost_section(table, orders, cheap))
             files = {"cost.csv": lambda path: write_table(table, path)}
     with phase("report: page and files"):
-        write_report(out, chosen, references, outcomes, records, sections, files)
-    return RunReport(chosen, references, outcomes, records, out, left_out(scenarios, chosen))
+        write_report(out, chosen, references, outcomes, records, sections, files, drawings)
+    return RunReport(chosen, references, outcomes, records, out, left_out(scenarios, chosen), alongside_cpu)
+
+
+def _side_results(plans: list[Plan], engines: list[str], side: list[Done]) -> tuple[dict, list, list, dict, float]:
+    """The references, audits, findings and drawings of the linkages (scene
+    name → figure) the workers computed alongside
+    the engine runs. A job that failed there is done again here, so that
+    its error is raised as it would be in one process (a scene refused as
+    bad input is exit status 2, not a lost report). And the workers' CPU
+    time (s) for them."""
+    references, audits, drawings = {}, [], {}
+    for plan, done in zip(plans, side):
+        if done.error:
+            references[plan.scenario.name] = simulate(plan, REFERENCE)
+            audits += audit_all([plan], engines)
+            continue
+        references[plan.scenario.name], audit, drawings[plan.scenario.name] = done.value[0]
+        audits += audit
+    findings = side[-1].value[0] if not side[-1].error else measure_findings(engines)
+    return references, audits, findings, drawings, sum(done.value[1] for done in side if not done.error)
 
 
 def print_summary(run: RunReport) -> int:

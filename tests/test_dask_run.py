@@ -119,7 +119,10 @@ def test_a_worker_lost_mid_run_is_retried_elsewhere_or_a_failed_row(monkeypatch,
     monkeypatch.setattr(registry, "targets", registered())
     monkeypatch.setenv("MECHVAL_TEST_CRASH_DIR", str(tmp_path))
     start = time.monotonic()
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}), _cluster() as cluster:
+    # One task at a time per worker (worker-saturation 1.0): a worker that
+    # dies takes with it only the task it was running, none queued behind.
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1,
+                          "distributed.scheduler.worker-saturation": 1.0}), _cluster() as cluster:
         run = run_and_report(scenes[:1], ["faithful", "crashing-once", "crashing"], tmp_path / "report",
                              quiet=True, dask=cluster.scheduler_address)
     assert time.monotonic() - start < 120
@@ -234,3 +237,14 @@ def test_a_real_scheduler_and_two_workers(local_run, scenes, tmp_path, monkeypat
     assert "; 2.0 on tcp://127.0.0.1:" in warning
     html = (versioned / "index.html").read_text()
     assert 'id="worker-versions"' in html and html.count('<td class="text bad">') >= 2
+
+
+def test_a_cluster_without_workers_fails_the_tasks_instead_of_hanging():
+    """No worker for the connect timeout (all died, none came back): the
+    waiting tasks are failed with that reason."""
+    from distributed import LocalCluster
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        start = time.monotonic()
+        done = DaskExecutor(cluster.scheduler_address, timeout=60, connect_timeout=1).run(time.sleep, [0.1, 0.1])
+    assert time.monotonic() - start < 10
+    assert [d.error for d in done] == ["no Dask worker left on the cluster for 1 s"] * 2

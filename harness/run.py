@@ -37,7 +37,7 @@ from .executors import Done, LocalExecutor, executor_for
 from .plan import Plan, prepare
 from .preflight import (check_dask_address, check_out_dir, check_runs, chosen_engines, chosen_scenarios,
                         default_out_dir, left_out, worker_count)
-from .runner import discrepancies, import_engines, run_alongside, scene_job, tasks_for
+from .runner import import_engines, joined, outcome_records, run_alongside, scene_job, tasks_for
 from .simulate import simulate
 
 
@@ -104,19 +104,38 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
     # reference and model audit (which builds the models again and
     # simulates nothing) and the engine findings measured on the installed
     # versions: the main job's own work overlaps the engine runs.
+    # Each run is compared as it arrives, once its scene's reference has.
+    arrived: dict[str, Signals] = {}
+    compared: dict[int, pd.DataFrame] = {}                 # id(task) → its records
+    waiting: dict[str, list[Outcome]] = {}
     with phase("engine runs"), tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
                                     disable=quiet) as bar:
         def done(outcome):
             bar.set_postfix_str(one_line(outcome.task.label, 80) + (" FAILED" if outcome.error else ""),
                                 refresh=False)
             bar.update()
+            name = outcome.task.scenario.name
+            if outcome.signals is None or name in arrived:
+                compared[id(outcome.task)] = outcome_records(outcome, arrived.get(name))
+            else:
+                waiting.setdefault(name, []).append(outcome)
+
+        def job_done(index, job):
+            if index < len(plans) and not job.error:
+                name = plans[index].scenario.name
+                arrived[name] = job.value[0][0]
+                for outcome in waiting.pop(name, []):
+                    compared[id(outcome.task)] = outcome_records(outcome, arrived[name])
+
         if isinstance(executor, LocalExecutor):
             import_engines(engines)
         jobs = [functools.partial(scene_job, plan.scenario, {e: plan.settings(e) for e in engines}) for plan in plans]
-        outcomes, side = run_alongside(tasks, jobs + [functools.partial(measure_findings, engines)], executor, done)
+        outcomes, side = run_alongside(tasks, jobs + [functools.partial(measure_findings, engines)], executor, done,
+                                       on_job=job_done)
     with phase("comparison"):
         references, audits, findings, drawings, alongside_cpu = _side_results(plans, engines, side)
-        records = discrepancies(outcomes, references)
+        records = joined([compared[id(o.task)] if id(o.task) in compared
+                          else outcome_records(o, references[o.task.scenario.name]) for o in outcomes])
     with phase("report: sections"):
         sections = [version_section(outcomes), stability_section(records, chosen), findings_section(findings),
                     audit_section(audits)]

@@ -88,7 +88,8 @@ def run_tasks(tasks: list[Task], workers: int = 0, timeout: float = 900.0,
 
 def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor: Executor,
                   on_done: Callable[[Outcome], None] = lambda outcome: None,
-                  body: Callable[[Task], tuple] = simulate_task) -> tuple[list[Outcome], list[Done]]:
+                  body: Callable[[Task], tuple] = simulate_task,
+                  on_job: Callable[[int, Done], None] = lambda index, done: None) -> tuple[list[Outcome], list[Done]]:
     """`run_tasks`, with other work (`jobs`: calls without arguments, e.g.
     `functools.partial(scene_job, plan, engines)`) run by the same workers
     in the same batch, so that it overlaps the engine runs rather than
@@ -97,7 +98,7 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
     runs, the most steps first: no long run is left to finish alone while
     the other workers idle. The outcomes in the tasks' order, and one
     Done per job, its value (what the job returned, its worker's CPU time
-    in s)."""
+    in s); on_job(index, done) as each job ends."""
     def outcome(task: Task, done: Done) -> Outcome:
         if done.error:
             return Outcome(task, None, done.error, worker=done.worker)
@@ -111,6 +112,8 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
     def done(index: int, result: Done) -> None:
         if index >= len(jobs):
             on_done(outcome(tasks[order[index - len(jobs)]], result))
+        else:
+            on_job(index, result)
 
     results = executor.run(_call, items, done)
     in_task_order = dict(zip(order, results[len(jobs):]))
@@ -163,18 +166,24 @@ def longest_first(tasks: list[Task]) -> list[int]:
 
 def discrepancies(outcomes: list[Outcome], references: Mapping[str, Signals]) -> pd.DataFrame:
     """Discrepancy records of every outcome; a failed run is one row."""
-    frames = []
-    for outcome in outcomes:
-        task = outcome.task
-        if outcome.signals is None:
-            row = dict.fromkeys(COLUMNS)
-            row.update(scenario=task.scenario.name, engine=task.engine, setting=task.setting, signal="(run)",
-                       verdict="fail", reason=outcome.error, missing=0)
-            frames.append(pd.DataFrame([row], columns=COLUMNS))
-            continue
-        frames.append(compare(references[task.scenario.name], outcome.signals,
-                              task.scenario.tolerance_for(task.engine), task.scenario.name, task.engine,
-                              task.setting))
+    return joined([outcome_records(o, references.get(o.task.scenario.name)) for o in outcomes])
+
+
+def outcome_records(outcome: Outcome, reference: Signals | None) -> pd.DataFrame:
+    """The discrepancy records of one outcome (`reference`: its scene's;
+    None only for a failed run, which is one row)."""
+    task = outcome.task
+    if outcome.signals is None:
+        row = dict.fromkeys(COLUMNS)
+        row.update(scenario=task.scenario.name, engine=task.engine, setting=task.setting, signal="(run)",
+                   verdict="fail", reason=outcome.error, missing=0)
+        return pd.DataFrame([row], columns=COLUMNS)
+    return compare(reference, outcome.signals, task.scenario.tolerance_for(task.engine), task.scenario.name,
+                   task.engine, task.setting)
+
+
+def joined(frames: list[pd.DataFrame]) -> pd.DataFrame:
+    """Outcomes' records as one table, in the given order."""
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=COLUMNS)
 
 

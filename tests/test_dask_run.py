@@ -248,3 +248,31 @@ def test_a_cluster_without_workers_fails_the_tasks_instead_of_hanging():
         done = DaskExecutor(cluster.scheduler_address, timeout=60, connect_timeout=1).run(time.sleep, [0.1, 0.1])
     assert time.monotonic() - start < 10
     assert [d.error for d in done] == ["no Dask worker left on the cluster for 1 s"] * 2
+
+
+@pytest.mark.parametrize("where", ["local", "dask"])
+def test_jobs_alongside_the_runs_come_back_in_order_with_their_cpu_time(where, scenes):
+    """The main job's own work (`run_alongside`'s jobs) goes through the
+    same executor as the engine runs: each job's value and CPU time come
+    back in the jobs' order, on_job hears of each, and the runs' outcomes
+    are those of run_tasks."""
+    import functools
+    from distributed import LocalCluster
+    from mechval.harness.executors import LocalExecutor
+    from mechval.harness.runner import run_alongside
+    tasks = tasks_for([load(scenes[0])], ["reference"])
+    jobs = [functools.partial(pow, 2, k) for k in range(4)]
+    heard = []
+
+    def run(executor):
+        return run_alongside(tasks, jobs, executor, on_job=lambda index, done: heard.append(index))
+
+    if where == "local":
+        outcomes, side = run(LocalExecutor(workers=2, timeout=60))
+    else:
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+                DaskExecutor(cluster.scheduler_address, timeout=60) as executor:
+            outcomes, side = run(executor)
+    assert [done.value[0] for done in side] == [1, 2, 4, 8] and all(done.value[1] >= 0 for done in side)
+    assert sorted(heard) == [0, 1, 2, 3]
+    assert len(outcomes) == 1 and outcomes[0].error == "" and len(outcomes[0].signals.frame) == 51

@@ -34,10 +34,10 @@ from .audit_run import audit_all
 from .cost import cost_sweep, points_for
 from .defaults import DASK_CONNECT_TIMEOUT, Limits
 from .executors import Done, LocalExecutor, executor_for
-from .plan import Plan, prepare
+from .plan import Plan
 from .preflight import (check_dask_address, check_out_dir, check_runs, chosen_engines, chosen_scenarios,
                         default_out_dir, left_out, worker_count)
-from .runner import import_engines, joined, outcome_records, run_alongside, scene_job, tasks_for
+from .runner import import_engines, joined, outcome_records, prepared_on, run_alongside, scene_job, tasks_for
 from .simulate import simulate
 
 
@@ -92,7 +92,9 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
         chosen = chosen_scenarios(scenarios, skip_hard, long)
         engines = chosen_engines(engines)
     with phase("plan runs: settings, limits"):
-        plans = [prepare(s, engines) for s in chosen]       # each scene prepared once for every phase
+        if isinstance(executor, LocalExecutor):
+            import_engines(engines)
+        plans = prepared_on(executor, chosen, engines)      # each scene prepared once for every phase
         tasks = tasks_for(plans, engines)
         check_runs([(t.scenario, t.engine, t.settings) for t in tasks], limits)
         if cost:
@@ -127,8 +129,6 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
                 for outcome in waiting.pop(name, []):
                     compared[id(outcome.task)] = outcome_records(outcome, arrived[name])
 
-        if isinstance(executor, LocalExecutor):
-            import_engines(engines)
         jobs = [functools.partial(scene_job, plan.scenario, {e: plan.settings(e) for e in engines}) for plan in plans]
         outcomes, side = run_alongside(tasks, jobs + [functools.partial(measure_findings, engines)], executor, done,
                                        on_job=job_done)

@@ -106,10 +106,10 @@ def open_in_chromium(page: Path) -> tuple[float, float, list[str]]:
 def print_ratios(rows: list[tuple[str, float, float, float]], engine_cpu: float, alongside_cpu: float,
                  workers: int) -> None:
     """The main job's two goals (issue 27), as measured and as this
-    machine's CPU times predict them on a quiet machine (each phase of the
-    parent alone as long as its CPU time; the engine phase as long as all
-    the CPU spent in it, the workers' and the parent's, shared by the
-    workers; the overhead of forks and transfers is in those CPU times):
+    machine's CPU times predict them on a quiet machine (each phase as
+    long as all the CPU spent in it, the workers' and the parent's, shared
+    by the workers, and at least as long as the parent's part; the
+    overhead of forks and transfers is in those CPU times):
 
     - the whole run ≤ 1.15 × its engine phase (the references, the model
       audit and the findings run alongside the engine runs);
@@ -118,8 +118,8 @@ def print_ratios(rows: list[tuple[str, float, float, float]], engine_cpu: float,
     phase = next(row for row in rows if row[0] == "engine runs")
     total = sum(row[1] for row in rows)
     task_cpu = engine_cpu + alongside_cpu
-    quiet_phase = max(phase[2], (phase[2] + phase[3]) / workers)
-    quiet_total = sum(row[2] for row in rows if row is not phase) + quiet_phase
+    quiet = {row[0]: max(row[2], (row[2] + row[3]) / workers) for row in rows}
+    quiet_phase, quiet_total = quiet["engine runs"], sum(quiet.values())
     print(f"\nthe engine phase's tasks: engine runs {engine_cpu:.1f} s CPU, alongside them (references, audit, "
           f"findings) {alongside_cpu:.1f} s; the workers' CPU in all {phase[3]:.1f} s, the parent's {phase[2]:.1f} s")
     print(f"whole run / engine phase: measured {total / phase[1]:.2f}, quiet-machine estimate "

@@ -1,8 +1,12 @@
 """`mechval run` as a function a script can call (docs/comparison.md,
-"mechval run"): plan the runs (settings, limits, output folder), compute
-the references, run the engines, compare, write the report (stability,
-engine findings, model audit, and the cost sweep when asked), and say what
-it found. The command line only parses its arguments into `run_and_report`.
+"mechval run"): plan the runs (settings, limits, output folder; each
+scene's peak rates solved by the workers), run the engines and, on the
+same workers alongside them, the references, the model audit, the
+drawings and the engine findings, compare each run as it arrives, write
+the report (stability, findings, audit, and the cost sweep when asked),
+and say what it found. The workers are a local pool or, with `dask`, a
+Dask cluster's. The command line only parses its arguments into
+`run_and_report`.
 """
 
 from __future__ import annotations

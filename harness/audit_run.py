@@ -16,15 +16,17 @@ from .plan import Plan, planned, prepare
 from .preflight import chosen_engines, load_scenario
 
 
-def audit_scenario(scenario: Scenario | Plan, engine: str, overrides: Mapping[str, Any] | None = None) -> AuditResult:
+def audit_scenario(scenario: Scenario | Plan, engine: str, overrides: Mapping[str, Any] | None = None,
+                   settings: Mapping[str, Any] | None = None) -> AuditResult:
     """The audit of `engine`'s model of `scenario` (or of its prepared
-    `Plan`) at its default setting (plus overrides). Settings the scenario
-    refuses raise ScenarioError; a scenario the engine cannot model gives a
-    result with the error."""
+    `Plan`) at its default setting (plus overrides), or at `settings`
+    resolved by the caller's plan (then nothing is derived here). Settings
+    the scenario refuses raise ScenarioError; a scenario the engine cannot
+    model gives a result with the error."""
     engine_adapter = adapter(engine)
-    plan = planned(scenario, [engine_adapter])
+    plan = planned(scenario, [] if settings is not None else [engine_adapter])
     scenario, mechanism = plan.scenario, plan.mechanism
-    settings = plan.settings(engine_adapter, overrides)
+    settings = dict(settings) if settings is not None else plan.settings(engine_adapter, overrides)
     start = time.perf_counter()
     try:
         table = engine_adapter.audit(mechanism, scenario.time.t, settings)

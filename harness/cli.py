@@ -74,7 +74,7 @@ def run_options(args) -> dict:
     """`run_and_report`'s arguments from `mechval run`'s."""
     return dict(scenarios=args.scenarios, engines=args.engine, out=args.out, workers=args.workers,
                 timeout=args.timeout, skip_hard=args.skip_hard, long=args.long, quiet=args.quiet, cost=args.cost,
-                limits=_limits(args))
+                limits=_limits(args), dask=args.dask, dask_connect_timeout=args.dask_connect_timeout)
 
 
 def cmd_cost(args) -> int:
@@ -125,6 +125,13 @@ def _add_limits(parser: argparse.ArgumentParser) -> None:
                         help=f"refuse an engine run estimated to need more GiB (default: 3/4 of this machine, {DEFAULT_MAX_MEMORY / 2**30:.3g})")
 
 
+def _add_dask(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument("--dask", metavar="ADDRESS",
+                        help=f"run {what} on the Dask scheduler at ADDRESS (tcp://HOST:PORT) instead of locally")
+    parser.add_argument("--dask-connect-timeout", type=_positive, default=DASK_CONNECT_TIMEOUT, metavar="SECONDS",
+                        help=f"seconds to wait for the Dask scheduler to answer (default {DASK_CONNECT_TIMEOUT:g})")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mechval", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -148,16 +155,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "and a half of engine CPU time), which a run of all built-ins leaves out by default")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--cost", action="store_true", help="add the work-precision sweep (as `mechval cost`; slow)")
+    _add_dask(p, "the engine runs")
     _add_limits(p)
     p.set_defaults(func=cmd_run)
     p = sub.add_parser("cost", help="work-precision sweep: error against wall time per engine setting")
     p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="built-in names or .toml paths")
     p.add_argument("--engine", action="append", help="engine to sweep (repeatable; default: all installed)")
     p.add_argument("--out", type=Path, help="report folder (default: a new folder under reports/out/)")
-    p.add_argument("--dask", metavar="ADDRESS",
-                   help="run the points on the Dask scheduler at ADDRESS (tcp://HOST:PORT) instead of locally")
-    p.add_argument("--dask-connect-timeout", type=_positive, default=DASK_CONNECT_TIMEOUT, metavar="SECONDS",
-                   help=f"seconds to wait for the Dask scheduler to answer (default {DASK_CONNECT_TIMEOUT:g})")
+    _add_dask(p, "the points")
     p.add_argument("--repeats", type=_positive_int, default=3, help="timed runs per point (median; default 3)")
     p.add_argument("--quick", action="store_true", help="two points per engine: the default step and ~10x coarser")
     p.add_argument("--workers", type=_count, default=0, help="local worker processes (default: one per core)")

@@ -47,9 +47,10 @@ from mechval.reports.cost_report import write_cost_report
 from mechval.records.signals import SIGNAL_CLASS, Signals
 
 from .defaults import DASK_CONNECT_TIMEOUT, Limits
-from .executors import Done, Executor, dask_address_problem, executor_for
+from .executors import Done, Executor, executor_for
 from .plan import Plan, planned, prepare, scenario_of
-from .preflight import UsageError, check_out_dir, check_runs, chosen_engines, default_out_dir, load_scenario, worker_count
+from .preflight import (UsageError, check_dask_address, check_out_dir, check_runs, chosen_engines, default_out_dir,
+                        load_scenario, worker_count)
 from .simulate import simulate
 
 
@@ -176,9 +177,7 @@ def cost_command(scenarios: list[str], engines: list[str] | None, out: Path | No
     report folder and its tables printed."""
     if repeats < 1:
         raise UsageError("--repeats must be at least 1")
-    problem = "" if dask is None else dask_address_problem(dask)
-    if problem:
-        raise UsageError(f"--dask {dask!r}: not a Dask scheduler address: {problem}")
+    check_dask_address(dask)
     chosen = [load_scenario(name) for name in scenarios]
     engines = chosen_engines(engines)
     plans = [prepare(s, engines) for s in chosen]
@@ -186,8 +185,8 @@ def cost_command(scenarios: list[str], engines: list[str] | None, out: Path | No
                 for p in points_for(plan, e, quick)], limits)
     out = out or default_out_dir("cost")
     check_out_dir(out)
-    executor = executor_for(dask, worker_count(workers), timeout, dask_connect_timeout)
-    table, orders, cheap = cost_sweep(plans, engines, executor, quick, repeats, quiet)
+    with executor_for(dask, worker_count(workers), timeout, dask_connect_timeout) as executor:
+        table, orders, cheap = cost_sweep(plans, engines, executor, quick, repeats, quiet)
     write_cost_report(out, table, orders, cheap)
     print(format_tables(table, orders, cheap))
     print(f"report: {out / 'index.html'}")

@@ -10,7 +10,11 @@ killed, a worker that crashes is replaced, the workers die with the parent
 (`interrupts.die_with_parent`), and an interrupted run kills them rather
 than waiting for them. On Dask, fn and its arguments travel pickled to the
 cluster's workers, which must have mechval installed; a running Dask task
-cannot be killed, so the timeout there only stops waiting for it.
+cannot be killed, so the timeout there only stops waiting for it. A Dask
+task whose worker dies is run again on another worker (Dask's
+`distributed.scheduler.allowed-failures`, default 3 more times), then it
+is a failed task with that reason; a cluster left without any worker for
+the connect timeout fails the tasks still waiting, so a run never hangs.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import contextlib
 import multiprocessing
 import os
 import signal
+import time
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from typing import Any, Callable, Protocol, Sequence
@@ -36,6 +41,8 @@ class Done:
 
     value: Any = None
     error: str = ""
+    #: The Dask worker that ran it (its address); "" for a local process.
+    worker: str = ""
 
 
 def _describe(exc: BaseException) -> str:
@@ -55,6 +62,12 @@ class LocalExecutor:
 
     def __init__(self, workers: int, timeout: float):
         self.workers, self.timeout = workers, timeout
+
+    def __enter__(self) -> "LocalExecutor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
         results: list[Done] = []
@@ -142,6 +155,19 @@ class DaskExecutor:
 
     def __init__(self, address: str, timeout: float, connect_timeout: float = DASK_CONNECT_TIMEOUT):
         self.address, self.timeout, self.connect_timeout = address, timeout, connect_timeout
+        self._client = None
+
+    def __enter__(self) -> "DaskExecutor":
+        """Connected until the block ends: a command connects before its
+        first piece of work, so an unreachable scheduler costs nothing
+        more than the connect timeout."""
+        self._client = self._connect()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        client, self._client = self._client, None
+        if client is not None:
+            client.close()
 
     def _connect(self):
         from distributed import Client
@@ -152,23 +178,62 @@ class DaskExecutor:
                                        f"(waited up to {self.connect_timeout:g} s): {exc}") from None
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
-        from distributed import as_completed
+        if self._client is None:
+            with self:
+                return self.run(fn, items, on_done)
+        return self._run(self._client, fn, items, on_done)
+
+    def _run(self, client, fn, items, on_done) -> list[Done]:
+        from distributed import wait
         results: list[Done | None] = [None] * len(items)
-        with self._connect() as client:
-            # pure=False: equal items (repeated timings) must each run.
-            futures = [client.submit(fn, item, pure=False) for item in items]
-            index_of = {future.key: index for index, future in enumerate(futures)}
-            try:
-                for future in as_completed(futures, timeout=self.timeout * max(1, len(items))):
-                    exc = future.exception()
-                    done = Done(error=_describe(exc)) if exc else Done(future.result())
-                    results[index_of[future.key]] = done
-                    on_done(index_of[future.key], done)
-            except FutureTimeout:
-                pass            # the tasks still running are reported below
-            finally:
-                client.cancel([f for f in futures if not f.done()])
-        return [done or Done(error="timed out on the Dask cluster") for done in results]
+        # pure=False: equal items (repeated timings) must each run.
+        futures = [client.submit(_on_worker, fn, item, pure=False) for item in items]
+        index_of = {future.key: index for index, future in enumerate(futures)}
+        deadline = time.monotonic() + self.timeout * max(1, len(items))
+        no_workers_since: float | None = None
+        pending, missing = set(futures), "timed out on the Dask cluster"
+        try:
+            while pending and time.monotonic() < deadline:
+                try:
+                    finished, pending = wait(pending, timeout=min(1.0, self.connect_timeout),
+                                             return_when="FIRST_COMPLETED")
+                except TimeoutError:
+                    finished = set()
+                for future in finished:
+                    index = index_of[future.key]
+                    results[index] = _done(future)
+                    on_done(index, results[index])
+                if finished or client.nthreads():
+                    no_workers_since = None
+                elif no_workers_since is None:
+                    no_workers_since = time.monotonic()
+                elif time.monotonic() - no_workers_since > self.connect_timeout:
+                    missing = f"no Dask worker left on the cluster for {self.connect_timeout:g} s"
+                    break
+        finally:
+            # Also on Ctrl-C: the cluster stops the tasks not yet run.
+            client.cancel([f for f in futures if not f.done()])
+        return [done or Done(error=missing) for done in results]
+
+
+def _on_worker(fn: Callable[[Any], Any], item: Any) -> tuple[Any, str]:
+    """A Dask task: fn(item), and the address of the worker that ran it."""
+    from distributed import get_worker
+    return fn(item), get_worker().address
+
+
+def _done(future) -> Done:
+    """A finished Dask future as a Done: a worker that died running it
+    (on every worker tried) is a reason, like any other error."""
+    from distributed import KilledWorker
+    exc = future.exception()
+    if isinstance(exc, KilledWorker):
+        return Done(error=f"its Dask worker died while running it, on {exc.allowed_failures + 1} workers "
+                          f"(the last {exc.last_worker.address})")
+    if exc is not None:
+        return Done(error=_describe(exc))
+    value, worker = future.result()
+    return Done(value, worker=worker)
 
 
 def executor_for(dask_address: str | None, workers: int, timeout: float,

@@ -78,6 +78,15 @@ def default_out_dir(kind: str = "run") -> Path:
     return Path("reports") / "out" / f"{kind}-{stamp}"
 
 
+def check_dask_address(address: str | None) -> None:
+    """--dask ADDRESS refused, before any work, unless it is a Dask
+    scheduler's address (None: no cluster asked for)."""
+    from .executors import dask_address_problem
+    problem = "" if address is None else dask_address_problem(address)
+    if problem:
+        raise UsageError(f"--dask {address!r}: not a Dask scheduler address: {problem}")
+
+
 def worker_count(count: int) -> int:
     """Worker processes: `count`, or one per core when 0."""
     return count or os.cpu_count() or 1

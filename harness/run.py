@@ -1,13 +1,18 @@
 """`mechval run` as a function a script can call (docs/comparison.md,
-"mechval run"): plan the runs (settings, limits, output folder), compute
-the references, run the engines, compare, write the report (stability,
-engine findings, model audit, and the cost sweep when asked), and say what
-it found. The command line only parses its arguments into `run_and_report`.
+"mechval run"): plan the runs (settings, limits, output folder; each
+scene's peak rates solved by the workers), run the engines and, on the
+same workers alongside them, the references, the model audit, the
+drawings and the engine findings, compare each run as it arrives, write
+the report (stability, findings, audit, and the cost sweep when asked),
+and say what it found. The workers are a local pool or, with `dask`, a
+Dask cluster's. The command line only parses its arguments into
+`run_and_report`.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,23 +23,26 @@ from tqdm import tqdm
 
 from mechval.judging.compare import passed
 from mechval.engines.findings import measure_findings
+from mechval.engines.registry import REFERENCE
 from mechval.records.outcome import Outcome
 from mechval.reports.audit import audit_section
 from mechval.reports.build import provenance, summary_markdown, write_report
 from mechval.reports.cost_report import cost_section, write_table
 from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
+from mechval.reports.workers import version_section, version_warnings
 from mechval.model.scenario import Scenario, one_line
 from mechval.records.signals import Signals
 
 from .audit_run import audit_all
 from .cost import cost_sweep, points_for
-from .defaults import Limits
-from .executors import LocalExecutor
-from .plan import prepare
-from .preflight import (check_out_dir, check_runs, chosen_engines, chosen_scenarios, default_out_dir, left_out,
-                        worker_count)
-from .runner import discrepancies, references_for, run_tasks, tasks_for
+from .defaults import DASK_CONNECT_TIMEOUT, Limits
+from .executors import Done, LocalExecutor, executor_for
+from .plan import Plan
+from .preflight import (check_dask_address, check_out_dir, check_runs, chosen_engines, chosen_scenarios,
+                        default_out_dir, left_out, worker_count)
+from .runner import import_engines, joined, outcome_records, prepared_on, run_alongside, scene_job, tasks_for
+from .simulate import simulate
 
 
 def _untimed(name: str):
@@ -54,6 +62,9 @@ class RunReport:
     folder: Path
     #: Built-ins a run of all of them left out (--skip-hard, no --long).
     left_out: list[str]
+    #: CPU time (s) of the work done alongside the engine runs: the
+    #: references, the model audit, the findings.
+    alongside_cpu_time: float = 0.0
 
     @property
     def passed(self) -> bool:
@@ -62,20 +73,32 @@ class RunReport:
 
 def run_and_report(scenarios: list[str] | None = None, engines: list[str] | None = None, out: Path | None = None,
                    *, workers: int = 0, timeout: float = 900.0, skip_hard: bool = False, long: bool = False,
-                   quiet: bool = False, cost: bool = False, limits: Limits = Limits(),
+                   quiet: bool = False, cost: bool = False, limits: Limits = Limits(), dask: str | None = None,
+                   dask_connect_timeout: float = DASK_CONNECT_TIMEOUT,
                    phase: Callable[[str], ContextManager] = _untimed) -> RunReport:
     """`mechval run SCENARIO… --engine E… --out OUT`: built-in names or .toml
     paths (None: every built-in, less 'hard' ones with `skip_hard` and
     'long' ones without `long`), engines (None: all installed), the report
     folder (None: a new one under reports/out/), the options of the same
-    names (`workers`: --workers). Raises what the command reports as
+    names (`workers`: --workers; `dask`: --dask, the engine runs and the
+    cost sweep on that Dask scheduler's workers, connected to before any
+    work). Raises what the command reports as
     errors (`mechval.harness.cli.main`). tests/bench/run_bench.py passes
     `phase` to time each phase."""
+    check_dask_address(dask)
+    with executor_for(dask, worker_count(workers), timeout, dask_connect_timeout) as executor:
+        return _run_and_report(scenarios, engines, out, executor, skip_hard=skip_hard, long=long, quiet=quiet,
+                               cost=cost, limits=limits, phase=phase)
+
+
+def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet, cost, limits, phase) -> RunReport:
     with phase("load scenarios and engines"):
         chosen = chosen_scenarios(scenarios, skip_hard, long)
         engines = chosen_engines(engines)
     with phase("plan runs: settings, limits"):
-        plans = [prepare(s, engines) for s in chosen]       # each scene prepared once for every phase
+        if isinstance(executor, LocalExecutor):
+            import_engines(engines)
+        plans = prepared_on(executor, chosen, engines)      # each scene prepared once for every phase
         tasks = tasks_for(plans, engines)
         check_runs([(t.scenario, t.engine, t.settings) for t in tasks], limits)
         if cost:
@@ -83,40 +106,79 @@ def run_and_report(scenarios: list[str] | None = None, engines: list[str] | None
                         for t in points_for(plan, e)], limits)
         out = out or default_out_dir()
         check_out_dir(out)
-    with phase("reference"):
-        references = references_for(plans)
+    # The engine runs, and alongside them, on the same workers, each scene's
+    # reference and model audit (which builds the models again and
+    # simulates nothing) and the engine findings measured on the installed
+    # versions: the main job's own work overlaps the engine runs.
+    # Each run is compared as it arrives, once its scene's reference has.
+    arrived: dict[str, Signals] = {}
+    compared: dict[int, pd.DataFrame] = {}                 # id(task) → its records
+    waiting: dict[str, list[Outcome]] = {}
     with phase("engine runs"), tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
                                     disable=quiet) as bar:
         def done(outcome):
             bar.set_postfix_str(one_line(outcome.task.label, 80) + (" FAILED" if outcome.error else ""),
                                 refresh=False)
             bar.update()
-        outcomes = run_tasks(tasks, workers=worker_count(workers), timeout=timeout, on_done=done)
+            name = outcome.task.scenario.name
+            if outcome.signals is None or name in arrived:
+                compared[id(outcome.task)] = outcome_records(outcome, arrived.get(name))
+            else:
+                waiting.setdefault(name, []).append(outcome)
+
+        def job_done(index, job):
+            if index < len(plans) and not job.error:
+                name = plans[index].scenario.name
+                arrived[name] = job.value[0][0]
+                for outcome in waiting.pop(name, []):
+                    compared[id(outcome.task)] = outcome_records(outcome, arrived[name])
+
+        jobs = [functools.partial(scene_job, plan.scenario, {e: plan.settings(e) for e in engines}) for plan in plans]
+        outcomes, side = run_alongside(tasks, jobs + [functools.partial(measure_findings, engines)], executor, done,
+                                       on_job=job_done)
     with phase("comparison"):
-        records = discrepancies(outcomes, references)
-    # The report: stability of the hard cases, the engine findings measured
-    # on the installed versions, the model audit (which builds the models
-    # again and simulates nothing), then the page and its files.
-    with phase("report: stability, findings"):
-        sections = [stability_section(records, chosen), findings_section(measure_findings(engines))]
-    with phase("report: model audit"):
-        sections.append(audit_section(audit_all(plans, engines)))
+        references, audits, findings, drawings, alongside_cpu = _side_results(plans, engines, side)
+        records = joined([compared[id(o.task)] if id(o.task) in compared
+                          else outcome_records(o, references[o.task.scenario.name]) for o in outcomes])
+    with phase("report: sections"):
+        sections = [version_section(outcomes), stability_section(records, chosen), findings_section(findings),
+                    audit_section(audits)]
     sections, files = [s for s in sections if s], None
     if cost:
         with phase("cost sweep"):
-            table, orders, cheap = cost_sweep(plans, engines, LocalExecutor(worker_count(workers), timeout),
-                                              quick=False, repeats=3, quiet=quiet)
+            table, orders, cheap = cost_sweep(plans, engines, executor, quick=False, repeats=3, quiet=quiet)
             sections.append(cost_section(table, orders, cheap))
             files = {"cost.csv": lambda path: write_table(table, path)}
     with phase("report: page and files"):
-        write_report(out, chosen, references, outcomes, records, sections, files)
-    return RunReport(chosen, references, outcomes, records, out, left_out(scenarios, chosen))
+        write_report(out, chosen, references, outcomes, records, sections, files, drawings)
+    return RunReport(chosen, references, outcomes, records, out, left_out(scenarios, chosen), alongside_cpu)
+
+
+def _side_results(plans: list[Plan], engines: list[str], side: list[Done]) -> tuple[dict, list, list, dict, float]:
+    """The references, audits, findings and drawings of the linkages (scene
+    name → figure) the workers computed alongside
+    the engine runs. A job that failed there is done again here, so that
+    its error is raised as it would be in one process (a scene refused as
+    bad input is exit status 2, not a lost report). And the workers' CPU
+    time (s) for them."""
+    references, audits, drawings = {}, [], {}
+    for plan, done in zip(plans, side):
+        if done.error:
+            references[plan.scenario.name] = simulate(plan, REFERENCE)
+            audits += audit_all([plan], engines)
+            continue
+        references[plan.scenario.name], audit, drawings[plan.scenario.name] = done.value[0]
+        audits += audit
+    findings = side[-1].value[0] if not side[-1].error else measure_findings(engines)
+    return references, audits, findings, drawings, sum(done.value[1] for done in side if not done.error)
 
 
 def print_summary(run: RunReport) -> int:
     """What `mechval run` prints once the report is written; its exit status
     (0: every comparison passed, 1: one failed)."""
     print(summary_markdown(run.records, run.scenarios, provenance(), run.references))
+    for warning in version_warnings(run.outcomes):
+        print(f"warning: {warning}")
     if run.left_out:
         print(f"left out: {', '.join(run.left_out)} (built-ins tagged 'long', run with --long, or 'hard', left out "
               f"by --skip-hard; naming a scene runs it)")

@@ -8,19 +8,25 @@ compares every result with the reference (computed once per scenario).
 
 from __future__ import annotations
 
+import functools
+import importlib
+import os
 import time
-from typing import Callable, Iterable, Mapping
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import pandas as pd
 
+from mechval.adapter import PeakRates
+from mechval.engines.base import peak_rates
 from mechval.judging.compare import COLUMNS, compare
 from mechval.engines.registry import REFERENCE, adapter
 from mechval.records.outcome import Outcome, Task
 from mechval.model.scenario import Scenario, require_unique_names
 from mechval.records.signals import Signals
+from mechval.reference.linkages import build_mechanism
 
-from .executors import Done, LocalExecutor
-from .plan import Plan, planned, scenario_of
+from .executors import Done, Executor, LocalExecutor
+from .plan import Plan, planned, prepare, scenario_of
 from .simulate import simulate
 
 
@@ -63,26 +69,119 @@ def tasks_for(scenarios: Iterable[Scenario | Plan], engines: Iterable[str]) -> l
     return tasks
 
 
-def run_tasks(tasks: list[Task], workers: int, timeout: float,
+def run_tasks(tasks: list[Task], workers: int = 0, timeout: float = 900.0,
               on_done: Callable[[Outcome], None] = lambda outcome: None,
-              body: Callable[[Task], tuple] = simulate_task) -> list[Outcome]:
+              body: Callable[[Task], tuple] = simulate_task, executor: Executor | None = None) -> list[Outcome]:
     """Run every task in a worker process (`body`: `simulate_task`, or one
-    that returns its figures and each signal's sensitivity); failures
-    become Outcomes, in the tasks' order. The runs with the most steps
-    start first, so that no long run is left to finish alone while the
-    other workers idle."""
+    that returns its figures and each signal's sensitivity) of `executor`
+    (default: a local pool of `workers`); failures become Outcomes, in the
+    tasks' order. The runs with the most steps start first, so that no
+    long run is left to finish alone while the other workers idle."""
     def outcome(task: Task, done: Done) -> Outcome:
         if done.error:
-            return Outcome(task, None, done.error)
+            return Outcome(task, None, done.error, worker=done.worker)
         signals, wall_time, cpu_time, *sensitivity = done.value
         return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time,
-                       sensitivity=sensitivity[0] if sensitivity else None)
+                       sensitivity=sensitivity[0] if sensitivity else None, worker=done.worker)
+
+    outcomes, _ = run_alongside(tasks, (), executor or LocalExecutor(workers or os.cpu_count() or 1, timeout),
+                                on_done, body)
+    return outcomes
+
+
+def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor: Executor,
+                  on_done: Callable[[Outcome], None] = lambda outcome: None,
+                  body: Callable[[Task], tuple] = simulate_task,
+                  on_job: Callable[[int, Done], None] = lambda index, done: None) -> tuple[list[Outcome], list[Done]]:
+    """`run_tasks`, with other work (`jobs`: calls without arguments, e.g.
+    `functools.partial(scene_job, plan, engines)`) run by the same workers
+    in the same batch, so that it overlaps the engine runs rather than
+    waiting for them or keeping them waiting. The jobs go first (they are
+    short, and what they give is needed once the runs end), then the
+    runs, the most steps first: no long run is left to finish alone while
+    the other workers idle. The outcomes in the tasks' order, and one
+    Done per job, its value (what the job returned, its worker's CPU time
+    in s); on_job(index, done) as each job ends."""
+    def outcome(task: Task, done: Done) -> Outcome:
+        if done.error:
+            return Outcome(task, None, done.error, worker=done.worker)
+        signals, wall_time, cpu_time, *sensitivity = done.value
+        return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time,
+                       sensitivity=sensitivity[0] if sensitivity else None, worker=done.worker)
 
     order = longest_first(tasks)
-    results = LocalExecutor(workers, timeout).run(
-        body, [tasks[k] for k in order], lambda index, done: on_done(outcome(tasks[order[index]], done)))
-    in_task_order = dict(zip(order, results))
-    return [outcome(task, in_task_order[k]) for k, task in enumerate(tasks)]
+    items = [functools.partial(_timed, job) for job in jobs] + [functools.partial(body, tasks[k]) for k in order]
+
+    def done(index: int, result: Done) -> None:
+        if index >= len(jobs):
+            on_done(outcome(tasks[order[index - len(jobs)]], result))
+        else:
+            on_job(index, result)
+
+    results = executor.run(_call, items, done)
+    in_task_order = dict(zip(order, results[len(jobs):]))
+    return [outcome(task, in_task_order[k]) for k, task in enumerate(tasks)], results[:len(jobs)]
+
+
+def prepared_on(executor: Executor, scenarios: Sequence[Scenario], engines: Sequence[str]) -> list[Plan]:
+    """Each scene prepared for `engines` (`mechval.harness.plan.prepare`),
+    the solve of its peak rates (a dense solve of its motion; for a
+    torque-driven or free scene an integration of the forward-dynamics
+    reference, the longer part) done by the executor's workers, in
+    parallel. The rates come back (arrays and a number); the mechanism is
+    built here again (it solves nothing) and the engines' defaults derived
+    from them. A scene whose solve fails there is prepared here, so that
+    its error is raised as it would be in one process."""
+    if not any(adapter(engine).uses_peak_rates for engine in engines):
+        return [prepare(scenario, engines) for scenario in scenarios]
+    solved = executor.run(rates_job, list(scenarios))
+    return [prepare(scenario, engines) if done.error
+            else Plan(scenario, build_mechanism(scenario), done.value, {}).for_engines(engines)
+            for scenario, done in zip(scenarios, solved)]
+
+
+def rates_job(scenario: Scenario) -> PeakRates:
+    """A worker's part of a scene's preparation: its peak rates."""
+    return peak_rates(build_mechanism(scenario), scenario.time.t)
+
+
+def import_engines(engines: Iterable[str]) -> None:
+    """Import each engine's adapter and library here, once: the local
+    pool's workers are forked from this process (for each task, so that
+    no engine state leaks from one into the next) and start with them
+    imported, instead of each paying for the imports in its run (measured
+    25 ms of CPU per run on average, tests/bench/run_bench.py)."""
+    for engine in engines:
+        importlib.import_module(adapter(engine).library)
+
+
+def _call(job: Callable[[], Any]) -> Any:
+    return job()
+
+
+def _timed(job: Callable[[], Any]) -> tuple[Any, float]:
+    cpu = time.process_time()
+    return job(), time.process_time() - cpu
+
+
+def scene_job(scenario: Scenario, settings: Mapping[str, Mapping[str, Any]]) -> tuple[Signals, list, dict]:
+    """A scene's own work, run by a worker alongside the engine runs: the
+    reference's run, the model audit of each engine at its default
+    `settings` (engine → settings, resolved by the plan;
+    `mechval.harness.audit_run.audit_scenario`: it simulates nothing) and
+    the page's drawing of the linkage (`mechval.reports.plots.
+    mechanism_figure`, whose motion, for a torque-driven or free scene, is
+    the reference's integrated run: done here, it is not integrated again).
+    It carries the scene, not its `Plan` (whose solved rates are large
+    and hold closures that do not pickle): the worker builds the
+    mechanism again, which solves nothing, and the reference needs no
+    peak rates."""
+    from mechval.reports.plots import mechanism_figure
+    from .audit_run import audit_scenario
+    plan = prepare(scenario)
+    reference = simulate(plan, adapter(REFERENCE))
+    return (reference, [audit_scenario(plan, engine, settings=values) for engine, values in settings.items()],
+            mechanism_figure(plan.mechanism, scenario.time.t))
 
 
 def longest_first(tasks: list[Task]) -> list[int]:
@@ -92,18 +191,24 @@ def longest_first(tasks: list[Task]) -> list[int]:
 
 def discrepancies(outcomes: list[Outcome], references: Mapping[str, Signals]) -> pd.DataFrame:
     """Discrepancy records of every outcome; a failed run is one row."""
-    frames = []
-    for outcome in outcomes:
-        task = outcome.task
-        if outcome.signals is None:
-            row = dict.fromkeys(COLUMNS)
-            row.update(scenario=task.scenario.name, engine=task.engine, setting=task.setting, signal="(run)",
-                       verdict="fail", reason=outcome.error, missing=0)
-            frames.append(pd.DataFrame([row], columns=COLUMNS))
-            continue
-        frames.append(compare(references[task.scenario.name], outcome.signals,
-                              task.scenario.tolerance_for(task.engine), task.scenario.name, task.engine,
-                              task.setting))
+    return joined([outcome_records(o, references.get(o.task.scenario.name)) for o in outcomes])
+
+
+def outcome_records(outcome: Outcome, reference: Signals | None) -> pd.DataFrame:
+    """The discrepancy records of one outcome (`reference`: its scene's;
+    None only for a failed run, which is one row)."""
+    task = outcome.task
+    if outcome.signals is None:
+        row = dict.fromkeys(COLUMNS)
+        row.update(scenario=task.scenario.name, engine=task.engine, setting=task.setting, signal="(run)",
+                   verdict="fail", reason=outcome.error, missing=0)
+        return pd.DataFrame([row], columns=COLUMNS)
+    return compare(reference, outcome.signals, task.scenario.tolerance_for(task.engine), task.scenario.name,
+                   task.engine, task.setting)
+
+
+def joined(frames: list[pd.DataFrame]) -> pd.DataFrame:
+    """Outcomes' records as one table, in the given order."""
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=COLUMNS)
 
 

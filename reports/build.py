@@ -216,7 +216,7 @@ def _run_groups(scenario: Scenario, records: pd.DataFrame) -> list[dict]:
 
 
 def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Outcome],
-                      records: pd.DataFrame, palette: Mapping[str, str]) -> dict:
+                      records: pd.DataFrame, palette: Mapping[str, str], drawing: dict | None = None) -> dict:
     results = {label(o.task.engine, o.task.setting): o.signals for o in outcomes if o.signals is not None}
     mine = records[records["scenario"] == scenario.name]
     bounds = {run: dict(zip(group["signal"], group["bound"])) for run, group in by_run(mine).items()}
@@ -225,7 +225,7 @@ def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Out
         description=scenario.description, tolerance=dict(scenario.tolerance.bounds),
         overrides=[note for engine in override_notes(scenario).values() for note in engine.values()],
         verdict=_verdict(mine),
-        drawing=plots.mechanism_figure(build_mechanism(scenario), scenario.time.t),
+        drawing=drawing if drawing is not None else plots.mechanism_figure(build_mechanism(scenario), scenario.time.t),
         signals=plots.signal_data(reference, results, bounds, palette),
         energy=plots.energy_data(reference, results, palette),
         reference_method=reference_method(reference),
@@ -236,9 +236,12 @@ def _scenario_section(scenario: Scenario, reference: Signals, outcomes: list[Out
 def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str, Signals],
                  outcomes: list[Outcome], records: pd.DataFrame,
                  extra_sections: Sequence[Section] = (),
-                 extra_files: Mapping[str, Callable[[Path], None]] | None = None) -> Path:
+                 extra_files: Mapping[str, Callable[[Path], None]] | None = None,
+                 drawings: Mapping[str, dict] | None = None) -> Path:
     """Render the report into `out` (which must not exist yet), whole or not
-    at all; extra_files maps a file name to a function writing that path."""
+    at all; extra_files maps a file name to a function writing that path;
+    `drawings` holds scenes' linkage figures made already (scene name →
+    `plots.mechanism_figure`, as `mechval run`'s workers make them)."""
     meta = provenance()
 
     def fill(folder: Path) -> None:
@@ -246,7 +249,7 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
                           trim_blocks=True, lstrip_blocks=True)
         palette = plots.colours(label(e, s) for e, s in zip(records["engine"], records["setting"]))
         sections = [_scenario_section(s, references[s.name], [o for o in outcomes if o.task.scenario.name == s.name],
-                                      records, palette) for s in scenarios]
+                                      records, palette, (drawings or {}).get(s.name)) for s in scenarios]
         sections.sort(key=lambda section: section["verdict"] != "fail")       # failures first, else as given
         html = env.get_template("report.html.j2").render(
             meta=meta, matrix=summary_matrix(records, scenarios), scenarios=sections, engine_runs=runs.run_tables(outcomes),

@@ -45,6 +45,7 @@ DESCRIPTIONS: Mapping[str, str] = {
     "wall_time_s": "time the engine took to simulate",
     "task_wall_time_s": "wall time of the whole task in its worker process",
     "task_cpu_time_s": "CPU time of the task's worker process",
+    "worker": "the Dask worker that ran it (mechval run --dask)",
     "drive_error_max": "largest error of the drive's coordinate against its law (rad; m for a slide drive)",
     "closure_gap_max": "largest loop-closure gap at the samples",
 }
@@ -90,7 +91,7 @@ def _facts(outcome: Outcome) -> dict[str, Any]:
     """A run's facts: the task's times (a CPU time of 0: not measured),
     then `RunInfo` (its fields, then the engine's facts)."""
     facts: dict[str, Any] = {"task_wall_time_s": outcome.wall_time,
-                             "task_cpu_time_s": outcome.cpu_time or None}
+                             "task_cpu_time_s": outcome.cpu_time or None, "worker": outcome.worker or None}
     return {**facts, **outcome.signals.info.as_dict()} if outcome.signals is not None else facts
 
 

@@ -58,6 +58,35 @@ class Crashing(_Fake):
         os._exit(7)
 
 
+class CrashingOnce(_Fake):
+    """Kills its worker process the first time it runs (it leaves a file in
+    $MECHVAL_TEST_CRASH_DIR to remember), then runs as the reference: a
+    worker lost mid-run whose task is run again elsewhere."""
+    name = "crashing-once"
+
+    def run(self, mechanism, times, settings):
+        marker = Path(os.environ["MECHVAL_TEST_CRASH_DIR"], "crashed")
+        if not marker.exists():
+            marker.touch()
+            os._exit(9)
+        return RawRun(raw_reference(mechanism, times))
+
+
+class Versioned(Faithful):
+    """The faithful copy, taking a second, and reporting as its version
+    $MECHVAL_TEST_VERSION (as a worker with another release installed
+    would)."""
+    name = "versioned"
+
+    def run(self, mechanism, times, settings):
+        time.sleep(1.0)
+        return super().run(mechanism, times, settings)
+
+    @classmethod
+    def version(cls) -> str:
+        return os.environ.get("MECHVAL_TEST_VERSION", "1.0")
+
+
 class Hanging(_Fake):
     name = "hanging"
 
@@ -124,7 +153,8 @@ class Loose(_Fake):
 
 
 FAKES = {cls.name: f"fake_engines:{cls.__name__}"
-         for cls in (Faithful, Stepless, Crashing, Hanging, Busy, NonFinite, Raising, Spiking, Loose)}
+         for cls in (Faithful, Stepless, Crashing, CrashingOnce, Versioned, Hanging, Busy, NonFinite, Raising,
+                     Spiking, Loose)}
 
 
 def registered(extra: Mapping[str, str] = FAKES) -> Callable[[], dict[str, str]]:

@@ -287,7 +287,7 @@ def no_engine_work(monkeypatch):
     """Fail if any engine (or the reference for a report) starts working."""
     def started(*args, **kwargs):
         raise AssertionError("engine work started before the refusal")
-    for module, name in [("run", "run_tasks"), ("run", "references_for"), ("cost", "sweep"),
+    for module, name in [("run", "run_alongside"), ("cost", "sweep"),
                          ("simulate", "simulate")]:
         monkeypatch.setattr(importlib.import_module(f"mechval.harness.{module}"), name, started)
 

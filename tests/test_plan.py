@@ -16,7 +16,7 @@ import pytest
 
 from mechval.reference.planar import solver as planar_solver
 from mechval.adapter import EngineAdapter, RawRun
-from mechval.harness import cli, runner
+from mechval.harness import cli, executors
 from mechval.harness.executors import Done
 from mechval.harness.plan import prepare
 from mechval.model.kinematics import STEP_RULE_GRID, step_rate
@@ -59,6 +59,12 @@ class InProcess:
     def __init__(self, *args):
         pass
 
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        pass
+
     def run(self, fn, items, on_done=lambda index, done: None):
         results = []
         for index, item in enumerate(items):
@@ -80,11 +86,12 @@ def test_one_simulate_solves_the_step_rule_grid_once(solves, tmp_path):
 @pytest.mark.engine
 def test_one_run_solves_the_step_rule_grid_once(solves, tmp_path, monkeypatch):
     """`mechval run` of jansen-leg on MuJoCo (two variants, two worker
-    tasks): the step rule's grid is solved once in all, not once more per
-    worker; besides it, the load's check, the reference at the samples,
-    each task's reads of its start and the report's drawing."""
+    tasks): the step rule's grid is solved once in all (by a worker), not
+    once more per worker or by the parent; besides it, the load's check,
+    the reference at the samples, each task's reads of its start and the
+    report's drawing (made by the worker that ran the reference)."""
     pytest.importorskip("mujoco")
-    monkeypatch.setattr(runner, "LocalExecutor", InProcess)
+    monkeypatch.setattr(executors, "LocalExecutor", InProcess)
     cli.main(["run", "jansen-leg", "--engine", "mujoco", "--out", str(tmp_path / "r"), "--quiet"])
     count = Counter(solves)
     assert count.pop("engine start") in (2, 3, 4), solves     # one or two reads per task (MuJoCo's pre-roll)

@@ -58,3 +58,5 @@ class Outcome:
     #: Per signal, how far it moved when the run's inputs moved by an ulp
     #: (measured by `baseline save` only).
     sensitivity: Mapping[str, float] | None = None
+    #: The Dask worker that ran it (its address); "" on this machine.
+    worker: str = ""

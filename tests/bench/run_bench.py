@@ -1,6 +1,8 @@
-"""`mechval run` phase by phase: what start-up, planning, the reference, the
-engine runs and the report cost, in wall time and CPU time, per engine run
-and per scene; the page's size and how fast it opens.
+"""`mechval run` phase by phase: what start-up, planning, the engine runs
+(with the references, the model audit and the findings alongside them) and
+the report cost, in wall time and CPU time, per engine run and per scene;
+the main job's overhead as the two ratios of issue 27; the page's size and
+how fast it opens.
 
     .venv/bin/python tests/bench/run_bench.py [SCENARIO...] [--engine NAME...] [--skip-hard]
                                               [--workers N] [--browser]
@@ -101,6 +103,32 @@ def open_in_chromium(page: Path) -> tuple[float, float, list[str]]:
     return loaded, drawn, requests
 
 
+def print_ratios(rows: list[tuple[str, float, float, float]], engine_cpu: float, alongside_cpu: float,
+                 workers: int) -> None:
+    """The main job's two goals (issue 27), as measured and as this
+    machine's CPU times predict them on a quiet machine (each phase as
+    long as all the CPU spent in it, the workers' and the parent's, shared
+    by the workers, and at least as long as the parent's part; the
+    overhead of forks and transfers is in those CPU times):
+
+    - the whole run ≤ 1.15 × its engine phase (the references, the model
+      audit and the findings run alongside the engine runs);
+    - the engine phase ≤ 1.1 × (its tasks' CPU time ÷ workers), the
+      tasks being the engine runs and the work alongside them."""
+    phase = next(row for row in rows if row[0] == "engine runs")
+    total = sum(row[1] for row in rows)
+    task_cpu = engine_cpu + alongside_cpu
+    quiet = {row[0]: max(row[2], (row[2] + row[3]) / workers) for row in rows}
+    quiet_phase, quiet_total = quiet["engine runs"], sum(quiet.values())
+    print(f"\nthe engine phase's tasks: engine runs {engine_cpu:.1f} s CPU, alongside them (references, audit, "
+          f"findings) {alongside_cpu:.1f} s; the workers' CPU in all {phase[3]:.1f} s, the parent's {phase[2]:.1f} s")
+    print(f"whole run / engine phase: measured {total / phase[1]:.2f}, quiet-machine estimate "
+          f"{quiet_total / quiet_phase:.2f} (goal ≤ 1.15)")
+    print(f"engine phase / (tasks' CPU / workers): measured {phase[1] / (task_cpu / workers):.2f}, quiet-machine "
+          f"estimate {quiet_phase / (task_cpu / workers):.2f} (goal ≤ 1.1); against the engine runs' CPU alone: "
+          f"measured {phase[1] / (engine_cpu / workers):.2f}, estimate {quiet_phase / (engine_cpu / workers):.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenarios", nargs="*")
@@ -147,6 +175,7 @@ def main() -> None:
           f"CPU time / workers {engine_cpu / args.workers:.1f} s against {engine_wall:.1f} s wall "
           f"(longest run {max(o.wall_time for o in outcomes):.1f} s wall, {max(o.cpu_time for o in outcomes):.1f} s CPU)")
     print(f"load average (1 min) {load_before[0]:.2f} before, {os.getloadavg()[0]:.2f} after, on {os.cpu_count()} cores")
+    print_ratios(phases.rows, engine_cpu, run.alongside_cpu_time, args.workers)
     page = run.folder / "index.html"
     print(f"\npage: {page.stat().st_size / 1e6:.2f} MB ({page}); "
           + ", ".join(f"{name} {size / 1e6:.2f} MB" for name, size in page_parts(page).items()))

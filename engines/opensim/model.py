@@ -66,6 +66,7 @@ class OpensimModel:
     closures: dict[str, osim.PointConstraint] = field(default_factory=dict)
     actuators: dict[str, osim.CoordinateActuator] = field(default_factory=dict)   # by torque law name
     forces: dict[str, osim.Force] = field(default_factory=dict)         # by force element or damper name
+    loop_pins: dict[str, osim.PinJoint] = field(default_factory=dict)   # closure "pin" only
 
     def coordinate(self, joint: str) -> osim.Coordinate:
         return self.joints[joint].get_coordinates(0)
@@ -118,9 +119,12 @@ def vec3(x: float, y: float, z: float = 0.0) -> osim.Vec3:
     return osim.Vec3(float(x), float(y), float(z))
 
 
-def build_model(mechanism: Mechanism) -> OpensimModel:
+def build_model(mechanism: Mechanism, closure: str = "point") -> OpensimModel:
     """The model with nothing but the scene's bodies, joints, drives,
-    gravity and force elements (no muscles, no joint limits, no contact)."""
+    gravity and force elements (no muscles, no joint limits, no contact).
+    `closure` "pin" closes each loop with a further `PinJoint` instead
+    (OpenSim's automatic loop breaking): only the finding's probe asks
+    for it (`findings`)."""
     built = OpensimModel(osim.Model())
     model = built.model
     model.setName("mechval")
@@ -135,11 +139,17 @@ def build_model(mechanism: Mechanism) -> OpensimModel:
     for k, tj in enumerate(tree):
         _add_tree_joint(built, mechanism, tj, f"j{k}")
     for k, joint in enumerate(closing):
-        closure = osim.PointConstraint(_frame(built, model, joint.body_i), vec3(*joint.point_i),
-                                       _frame(built, model, joint.body_j), vec3(*joint.point_j))
-        closure.setName(f"c{k}")
-        model.addConstraint(closure)
-        built.closures[joint.name] = closure
+        if closure == "pin":
+            pin = osim.PinJoint(f"c{k}", _frame(built, model, joint.body_i), vec3(*joint.point_i), vec3(0, 0, 0),
+                                _frame(built, model, joint.body_j), vec3(*joint.point_j), vec3(0, 0, 0))
+            model.addJoint(pin)
+            built.loop_pins[joint.name] = pin
+            continue
+        constraint = osim.PointConstraint(_frame(built, model, joint.body_i), vec3(*joint.point_i),
+                                          _frame(built, model, joint.body_j), vec3(*joint.point_j))
+        constraint.setName(f"c{k}")
+        model.addConstraint(constraint)
+        built.closures[joint.name] = constraint
     for drive in mechanism.drives:
         _prescribe(built, drive)
     for k, joint in enumerate(mechanism.damped_joints):

@@ -65,23 +65,29 @@ def coordinate_values(mechanism: Mechanism, built: OpensimModel, start: pd.DataF
             slide = slide_motion(start, joint)
             q, u = float(slide["s"][0]), float(slide["v"][0])
         values[name] = (tj.sign * q, tj.sign * u)
+    for name in built.loop_pins:        # the finding's probe only: child body_j
+        joint = mechanism.joint(name)
+        values[name] = (angle(joint.body_j, "theta") - angle(joint.body_i, "theta"),
+                        angle(joint.body_j, "omega") - angle(joint.body_i, "omega"))
     return values
 
 
-def prepare(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> Prepared:
+def prepare(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any], closure: str = "point") -> Prepared:
     """The model at the reference's state at times[0], and a Manager set up
-    with the settings (no analyses, no storage: nothing written)."""
+    with the settings (no analyses, no storage: nothing written); `closure`
+    as for `build_model`."""
     method = INTEGRATORS.get(settings["integrator"])
     if method is None:
         raise ValueError(f"opensim: integrator must be one of {tuple(INTEGRATORS)}, got {settings['integrator']!r}")
     t0 = float(times[0])
     start = start_state(mechanism, t0)
     with quiet():
-        built = build_model(mechanism)
+        built = build_model(mechanism, closure)
         state = built.model.initSystem()
         state.setTime(t0)
         for name, (q, u) in coordinate_values(mechanism, built, start).items():
-            coordinate = built.coordinate(name)
+            joint = built.joints.get(name) or built.loop_pins[name]
+            coordinate = joint.get_coordinates(0)
             coordinate.setValue(state, q, False)
             coordinate.setSpeedValue(state, u)
         manager = osim.Manager(built.model)
@@ -165,6 +171,9 @@ def sample(mechanism: Mechanism, built: OpensimModel, state: osim.State) -> dict
         row |= tree_reaction(mechanism, built, state, tj, force_xy, moment_z, drives.get(name))
     for name, closure in built.closures.items():
         row |= closure_reaction(mechanism, built, state, name, closure)
+    for name, pin in built.loop_pins.items():         # the finding's probe only; child body_j
+        force = pin.calcReactionOnChildExpressedInGround(state).get(1)
+        row |= {f"{name}.Fx": force[0], f"{name}.Fy": force[1]}
     for law in mechanism.torque_drives:
         row[f"{law.name}.T"] = built.tree[law.joint].sign * built.actuators[law.name].getActuation(state)
     return row

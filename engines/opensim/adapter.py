@@ -42,7 +42,7 @@ import pandas as pd
 
 from mechval.adapter import FEATURES, as_float, steps_per_interval
 from mechval.model.mechanism import Mechanism
-from mechval.settings import Choice, Number, Setting
+from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo
 from mechval.engines.opensim.run import INTEGRATORS, read_run
@@ -67,7 +67,7 @@ class OpensimAdapter(EngineAdapter):
         "constraint_tolerance": Number(0.0, 1.0, low_open=True),
         # The largest step Simbody may take (s); the error control takes
         # smaller ones where the accuracy needs them.
-        "max_step": Number(0.0, low_open=True),
+        "max_step": TIMESTEP,
     }
     step_setting = "max_step"
     step_settings = ("max_step",)

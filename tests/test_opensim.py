@@ -34,9 +34,11 @@ else:
 CLASS_PEAK_GOAL = 1e-6
 #: The 160 s run takes 35 s of CPU: slow only.
 LONG = {"fourbar-long-run"}
+#: The built-ins and the redundant-constraint scenes of planar-extra.
+SCENES = [*BUILTIN, "planar-extra/parallelogram-double-fourbar", "planar-extra/double-fourbar-falling"]
 PRESCRIBED = [pytest.param(name, marks=pytest.mark.slow) if name in LONG else name
-              for name in BUILTIN if not builtin_scenario(name).forward_dynamics]
-DYNAMIC = [name for name in BUILTIN if builtin_scenario(name).forward_dynamics]
+              for name in SCENES if not builtin_scenario(name).forward_dynamics]
+DYNAMIC = [name for name in SCENES if builtin_scenario(name).forward_dynamics]
 #: The finding measured on OpenSim 4.6 (engines/opensim/findings.py): the
 #: crank torque 0.0533 N·m off and the pivot forces 0.213 N, gravity on or
 #: off. A release that changes them has changed the bug: update the finding.

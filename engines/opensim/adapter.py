@@ -40,16 +40,22 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, as_float, steps_per_interval
+from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
 from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
-from mechval.engines.base import EngineAdapter, RawRun, RunInfo
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
 from mechval.engines.opensim.run import INTEGRATORS, read_run
 
 #: Simbody's relative accuracy of the error-controlled integrators. The
 #: measured figures behind the choice: docs/engines.md ("OpenSim").
 ACCURACY = 1e-9
+#: The largest step as a rotation at the run's peak rate Ω (rad): at the
+#: default accuracy Runge–Kutta–Merson's own steps are about 0.02–0.03 rad
+#: (a cap of 0.05 costs ~10 % CPU on slider-crank-150, 0.02 costs 40 %), so
+#: the declared run size (`planned_steps`) is within a small factor of the
+#: steps taken.
+MAX_STEP_RAD = 0.05
 #: Simbody's tolerance on the constraint errors (position and velocity
 #: projection), relative to its unit lengths.
 CONSTRAINT_TOLERANCE = 1e-10
@@ -79,24 +85,33 @@ class OpensimAdapter(EngineAdapter):
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "default": {}, "accuracy-1e-5": {"accuracy": 1e-5, "constraint_tolerance": 1e-6}}
     #: The tree, point constraints, prescribed coordinates, actuators and
-    #: force elements build every feature but redundant constraints.
-    features = frozenset(FEATURES) - {"redundant constraints"}
+    #: force elements build every feature; Simbody projects redundant
+    #: constraints (the parallelogram double four-bar) and its multipliers'
+    #: body resultants meet the reference (tests/test_opensim.py).
+    features = frozenset(FEATURES)
     #: The tables a run keeps (rows of raw columns, the frame, signals);
     #: nothing per step (no storage, no states trajectory).
     output_copies, bytes_per_step = 8, 0
 
-    def default_settings(self, mechanism: Mechanism, times: np.ndarray) -> dict[str, Any]:
+    uses_peak_rates = True
+
+    def default_settings(self, mechanism: Mechanism, times: np.ndarray,
+                         rates: PeakRates | None = None) -> dict[str, Any]:
         """OpenSim's own integrator (Runge–Kutta–Merson) at an accuracy that
         puts every built-in within 1e-6 of its class peak (measured,
-        docs/engines.md); no step limit below the sample interval (the
-        Manager stops at every sample)."""
+        docs/engines.md); the largest step MAX_STEP_RAD of a turn at the
+        run's peak rate Ω (`default_step`; `rates`: the prepared scene's,
+        else computed here), at most the sample interval."""
         interval = float(times[1] - times[0]) if len(times) > 1 else 1.0
+        rate = (peak_rates(mechanism, times) if rates is None else rates).rate if len(times) > 1 else None
+        max_step = default_step(mechanism, times, MAX_STEP_RAD, interval, rate) if rate is not None else interval
         return {"integrator": "RungeKuttaMerson", "accuracy": ACCURACY,
-                "constraint_tolerance": CONSTRAINT_TOLERANCE, "max_step": interval}
+                "constraint_tolerance": CONSTRAINT_TOLERANCE, "max_step": max_step}
 
     def planned_steps(self, times: np.ndarray, settings: Mapping[str, Any]) -> tuple[float, float]:
-        """At least one step per `max_step` of each sample interval (the
-        error control may take more: the run info records the count)."""
+        """One step per `max_step` of each sample interval: the error
+        control takes about as many at the default accuracy (`MAX_STEP_RAD`),
+        more at a tighter one."""
         return steps_per_interval(times, as_float(settings["max_step"])), 0.0
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:

@@ -32,13 +32,20 @@ else:
 #: every signal within this fraction of the largest peak of its class
 #: (measured worst 7.3e-8, slider-crank-toggle F14y; tests/bench/opensim_figures.py).
 CLASS_PEAK_GOAL = 1e-6
-#: The 160 s run takes 35 s of CPU: slow only.
-LONG = {"fourbar-long-run"}
 #: The built-ins and the redundant-constraint scenes of planar-extra.
 SCENES = [*BUILTIN, "planar-extra/parallelogram-double-fourbar", "planar-extra/double-fourbar-falling"]
-PRESCRIBED = [pytest.param(name, marks=pytest.mark.slow) if name in LONG else name
+#: In the default run: one scene per way the model can go wrong (a damper
+#: at a drive, at a closing pin and on a slide; two drives; a prismatic
+#: drive with a spring and a body torque; a slide between moving links; the
+#: worst scene; two loops; redundant constraints; a torque law). The rest
+#: are slow (the 160 s run alone takes 35 s of CPU): `-m slow` runs them.
+DEFAULT = {"fourbar-damped", "slider-crank-damped", "five-bar-two-drives", "slider-driven-slider-crank",
+           "shaper-quick-return", "slider-crank-toggle", "stephenson-six-bar",
+           "planar-extra/parallelogram-double-fourbar", "slider-crank-motor"}
+PRESCRIBED = [name if name in DEFAULT else pytest.param(name, marks=pytest.mark.slow)
               for name in SCENES if not builtin_scenario(name).forward_dynamics]
-DYNAMIC = [name for name in SCENES if builtin_scenario(name).forward_dynamics]
+DYNAMIC = [name if name in DEFAULT else pytest.param(name, marks=pytest.mark.slow)
+           for name in SCENES if builtin_scenario(name).forward_dynamics]
 #: The finding measured on OpenSim 4.6 (engines/opensim/findings.py): the
 #: crank torque 0.0533 N·m off and the pivot forces 0.213 N, gravity on or
 #: off. A release that changes them has changed the bug: update the finding.

@@ -35,6 +35,25 @@ INTEGRATORS = {
 }
 
 
+#: Steps Simbody may take per sample interval, as a multiple of the
+#: declared one per `max_step` (at least STEP_LIMIT_MIN): a run that needs
+#: more is stopped rather than left to shrink its step without end (gravity
+#: 1e49 did: no answer in minutes; now NaN at once).
+STEP_LIMIT_FACTOR = 100
+STEP_LIMIT_MIN = 1000
+#: The smallest step, as a fraction of `max_step`: far below any step a
+#: run that meets its accuracy takes (about max_step / 2), it stops the step
+#: from shrinking without end: with gravity 1e49 and no floor Simbody gave no
+#: answer in minutes even under the step limit; with it, NaN at once
+#: (tests/test_fuzz.py's blow-up case).
+MIN_STEP_FRACTION = 1e-9
+
+
+def step_limit(times: np.ndarray, max_step: float) -> int:
+    interval = float(times[1] - times[0]) if len(times) > 1 else max_step
+    return max(STEP_LIMIT_MIN, STEP_LIMIT_FACTOR * math.ceil(interval / max_step - 1e-9))
+
+
 @dataclass
 class Prepared:
     """The built model, its initial state at times[0] and the Manager."""
@@ -95,6 +114,8 @@ def prepare(mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]
         manager.setIntegratorAccuracy(float(settings["accuracy"]))
         manager.setIntegratorConstraintTolerance(float(settings["constraint_tolerance"]))
         manager.setIntegratorMaximumStepSize(float(settings["max_step"]))
+        manager.setIntegratorInternalStepLimit(step_limit(times, float(settings["max_step"])))
+        manager.setIntegratorMinimumStepSize(MIN_STEP_FRACTION * float(settings["max_step"]))
         manager.setPerformAnalyses(False)
         manager.setWriteToStorage(False)
         manager.setRecordStatesTrajectory(False)
@@ -134,6 +155,9 @@ def integrate(prepared: Prepared, mechanism: Mechanism, times: np.ndarray) -> di
     with quiet():
         for k, t in enumerate(times):
             state = prepared.manager.getState() if k == 0 else prepared.manager.integrate(float(t))
+            if abs(state.getTime() - t) > 1e-9 * max(1.0, abs(t)):
+                raise RuntimeError(f"opensim: Simbody stopped at t = {state.getTime():.9g} s, before the sample at "
+                                   f"{t:.9g} s (more than its internal step limit per sample interval)")
             model.realizeAcceleration(state)
             for name, value in sample(mechanism, built, state).items():
                 columns.setdefault(name, []).append(value)

@@ -15,7 +15,8 @@ from mechval.records.findings import Measurement
 from mechval.engines.registry import EngineUnavailable, adapter
 
 #: Engine name → module with FINDINGS (records) and PROBES (key → probe).
-PROBE_MODULES = {"pybullet": "mechval.engines.pybullet.findings", "pinocchio": "mechval.engines.pinocchio.findings"}
+PROBE_MODULES = {"pybullet": "mechval.engines.pybullet.findings", "pinocchio": "mechval.engines.pinocchio.findings",
+                 "opensim": "mechval.engines.opensim.findings"}
 
 
 def measure_findings(engines: Iterable[str]) -> list[Measurement]:

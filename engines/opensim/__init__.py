@@ -1,0 +1,1 @@
+"""OpenSim (Simbody) engine: adapter, model, run, audit and findings."""

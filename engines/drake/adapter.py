@@ -48,7 +48,6 @@ import time
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
-import pandas as pd
 
 from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
 from mechval.model.mechanism import Mechanism
@@ -118,10 +117,6 @@ class DrakeAdapter(EngineAdapter):
             return [("preroll_steps", "a torque-driven or free run starts at the first instant from its initial "
                                       "state, with no pre-roll: leave it out or set 0")]
         return []
-
-    def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
-        from mechval.engines.drake.audit import audit_model
-        return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         from mechval.engines.drake.run import Run

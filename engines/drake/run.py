@@ -97,14 +97,18 @@ class Run:
         # times would take no step.
         context.SetTime(0.0)
         plant_context = plant.GetMyMutableContextFromRoot(context)
-        for name, (q, v) in coordinates(self.topo, self.start.motion).items():
+        for name, (q, v, a) in coordinates(self.topo, self.start.motion).items():
+            # Drake's v_n is the mean rate over the step that ends at t_n,
+            # the rate half a step earlier: the start gets v(t0) − dt/2·v̇(t0)
+            # (a start at v(t0) puts a phase error of O(dt) into the whole run).
             set_position(m.joints[name], plant_context, float(q[0]))
-            set_rate(m.joints[name], plant_context, float(v[0]))
+            set_rate(m.joints[name], plant_context, float(v[0] - 0.5 * self.dt * a[0]))
         simulator.Initialize()
         rows = []
         clock = time.perf_counter()
         for n in self.sample_steps():
-            simulator.AdvanceTo((n - STEP_MARGIN) * self.dt)
+            if n > 0:
+                simulator.AdvanceTo((n - STEP_MARGIN) * self.dt)
             rows.append(self.read(plant_context))
         wall = time.perf_counter() - clock
         frame = self.frame(rows)

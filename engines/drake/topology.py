@@ -134,8 +134,9 @@ def _spanning_tree(mech: Mechanism, joints: list[Joint]) -> tuple[TreeJoint, ...
     return tuple(order) if not remaining and len(reached) == len(mech.bodies) + 1 else None
 
 
-def coordinates(topo: Topology, motion: Mapping[str, np.ndarray]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Per tree joint its Drake (q, v) from the reference body motion: a
+def coordinates(topo: Topology, motion: Mapping[str, np.ndarray]
+                ) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Per tree joint its Drake (q, v, v̇) from the reference body motion: a
     hinge's θchild − θparent, a slide's travel of the child's joint point
     from the parent's along the axis (sign·s, `slide_motion`)."""
     from mechval.model.kinematics import slide_motion
@@ -145,8 +146,8 @@ def coordinates(topo: Topology, motion: Mapping[str, np.ndarray]) -> dict[str, t
     for tj in topo.tree:
         j = tj.joint
         if j.kind == "revolute":
-            out[j.name] = tuple(tj.sign * (of(j.body_j, q) - of(j.body_i, q)) for q in ("theta", "omega"))
+            out[j.name] = tuple(tj.sign * (of(j.body_j, q) - of(j.body_i, q)) for q in ("theta", "omega", "alpha"))
         else:
             slide = slide_motion(motion, j)
-            out[j.name] = (tj.sign * np.asarray(slide["s"]), tj.sign * np.asarray(slide["v"]))
+            out[j.name] = tuple(tj.sign * np.asarray(slide[q]) for q in ("s", "v", "a"))
     return out

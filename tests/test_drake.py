@@ -29,12 +29,10 @@ PLANAR_OUT = {
     "pin-driven-five-bar": "L4.alpha 2.4x its bound, every force ~2.4x (a first-order step on a fast two-drive scene)",
     "ground-second": "conrod.vy 1.0002x its bound (0.005001 against 0.005)",
 }
-NO_AUDIT = "the Drake adapter has no model audit yet"
 
 
 class TestContract(AdapterContract):
     engine = "drake"
-    without_model_audit = "the Drake adapter has no model audit yet"
 
     @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=FREE_FOURBAR))
                                       if n == "free-fourbar" else n for n in DYNAMIC])
@@ -49,8 +47,3 @@ class TestPlanarContract(PlanarContract):
                                       if n in PLANAR_OUT else n for n in SCENES])
     def test_meets_the_default_tolerances(self, adapter, name):
         super().test_meets_the_default_tolerances(adapter, name)
-
-    @pytest.mark.parametrize("name", SCENES)
-    @pytest.mark.xfail(strict=True, raises=NotImplementedError, reason=NO_AUDIT)
-    def test_the_model_holds_the_scene_and_its_new_elements(self, adapter, name):
-        super().test_the_model_holds_the_scene_and_its_new_elements(adapter, name)

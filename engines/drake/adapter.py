@@ -104,7 +104,7 @@ class DrakeAdapter(EngineAdapter):
         return {
             "timestep": default_step(mechanism, times, rate=rate),
             "refine": 1,
-            "drive_stiffness": 100.0,
+            "drive_stiffness": 1e4,
             "drive_damping": 0.0,
             "preroll_steps": 0 if mechanism.forward_dynamics else 20,
             "near_rigid_threshold": 1.0,
@@ -117,6 +117,10 @@ class DrakeAdapter(EngineAdapter):
             return [("preroll_steps", "a torque-driven or free run starts at the first instant from its initial "
                                       "state, with no pre-roll: leave it out or set 0")]
         return []
+
+    def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]):
+        from mechval.engines.drake.audit import audit_model
+        return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
         from mechval.engines.drake.run import Run

@@ -171,18 +171,22 @@ class Run:
                          f"{b.name}.vx": v[:, 0], f"{b.name}.vy": v[:, 1], f"{b.name}.omega": omega,
                          f"{b.name}.ax": a[:, 0], f"{b.name}.ay": a[:, 1],
                          f"{b.name}.alpha": alpha})
+        transmitted: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         for tj in self.topo.tree:
             j, joint = tj.joint, self.model.joints[tj.joint.name]
             f = np.array([[*(r["X"][j.name] @ r["R"][int(joint.index())].translational()[:2]),
                            r["R"][int(joint.index())].rotational()[2]] for r in rows])
             fx, fy, tz = f[:, 0] * tj.sign, f[:, 1] * tj.sign, f[:, 2]
+            # The whole force the joint transmits (a slide's damper and drive
+            # included) balances the bodies (`cut_forces`).
+            transmitted[j.name] = (fx, fy)
             if j.kind == "prismatic":
                 ux, uy = rotate(self._theta(cols, j.body_i), j.axis)
                 along = fx * ux + fy * uy              # the axial part is the damper or the drive, not reaction
                 fx, fy = fx - along * ux, fy - along * uy
                 cols[f"{j.name}.M"] = tz if tj.sign > 0 else self._shifted_couple(cols, j, -tz, fx, fy)
             cols[f"{j.name}.Fx"], cols[f"{j.name}.Fy"] = fx, fy
-        cols.update(cut_forces(mech, self.topo, cols))
+        cols.update(cut_forces(mech, self.topo, cols, transmitted))
         for k, drive in enumerate(mech.drives):
             tj = self.topo.of_joint(drive.joint)
             col = drive.effort_column(tj.joint.kind)
@@ -211,14 +215,16 @@ class Run:
         return cols[f"{body}.x"] + x, cols[f"{body}.y"] + y
 
 
-def cut_forces(mech: Mechanism, topo: Topology, cols: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+def cut_forces(mech: Mechanism, topo: Topology, cols: Mapping[str, np.ndarray],
+               transmitted: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, np.ndarray]:
     """Fx, Fy of every cut pin, which Drake 1.51 reports no force for (its
     ball constraints have no output): from each moving body's linear
     momentum balance with Drake's own motion and reactions, m·a_G = m·g +
-    the joint forces on it + its spring-dampers' forces (their law at
-    Drake's state), solved for the cut forces by least squares (one
-    body's balance suffices per cut; the rest agree to Drake's own
-    consistency)."""
+    the force each tree joint transmits to it (`transmitted`: Drake's
+    reaction, a slide's axial damper and drive included) + its
+    spring-dampers' forces (their law at Drake's state), solved for the
+    cut forces by least squares (one body's balance suffices per cut; the
+    rest agree to Drake's own consistency)."""
     if not topo.cuts:
         return {}
     n = len(cols["t"])
@@ -234,8 +240,8 @@ def cut_forces(mech: Mechanism, topo: Topology, cols: Mapping[str, np.ndarray]) 
         j = tj.joint
         for body, sign in ((j.body_j, 1.0), (j.body_i, -1.0)):
             if body != GROUND:
-                rhs[2 * index[body]] -= sign * cols[f"{j.name}.Fx"]
-                rhs[2 * index[body] + 1] -= sign * cols[f"{j.name}.Fy"]
+                rhs[2 * index[body]] -= sign * transmitted[j.name][0]
+                rhs[2 * index[body] + 1] -= sign * transmitted[j.name][1]
     for force in mech.forces:
         if isinstance(force, SpringDamper):
             a, b = point_motion(cols, force.body_a, force.point_a), point_motion(cols, force.body_b, force.point_b)

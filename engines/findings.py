@@ -15,7 +15,7 @@ from mechval.records.findings import Measurement
 from mechval.engines.registry import EngineUnavailable, adapter
 
 #: Engine name → module with FINDINGS (records) and PROBES (key → probe).
-PROBE_MODULES = {"pybullet": "mechval.engines.pybullet.findings"}
+PROBE_MODULES = {"pybullet": "mechval.engines.pybullet.findings", "drake": "mechval.engines.drake.findings"}
 
 
 def measure_findings(engines: Iterable[str]) -> list[Measurement]:

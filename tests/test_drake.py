@@ -34,7 +34,8 @@ PLANAR_OUT = {
 class TestContract(AdapterContract):
     engine = "drake"
 
-    @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=FREE_FOURBAR))
+    @pytest.mark.parametrize("name", [pytest.param(n, marks=[pytest.mark.xfail(strict=True, reason=FREE_FOURBAR),
+                                                                  pytest.mark.slow])
                                       if n == "free-fourbar" else n for n in DYNAMIC])
     def test_follows_the_forward_dynamics_reference(self, adapter, name):
         super().test_follows_the_forward_dynamics_reference(adapter, name)

@@ -13,9 +13,34 @@ from mechval.testing import assert_within_tolerance
 from mechval.harness.simulate import simulate
 
 
+#: (engine, built-in) pairs out of the default tolerances at the engine's
+#: default settings, each an engine finding with its measured figure
+#: (docs/engines.md): strict xfails, so that a fix shows.
+OUT_OF_TOLERANCE = {
+    # Drake 1.51.1: its discrete step is first order (each error halves
+    # with the step; the variant high-accuracy meets all but the falling
+    # four-bar, 2.2x); worst signal over its bound, `mechval run --engine drake`.
+    ("drake", "fourbar-falling"): "Drake: theta2 21.7x its bound (free fall, first-order step)",
+    ("drake", "slider-crank-motor"): "Drake: theta2 9.6x its bound (torque-driven, first-order step)",
+    ("drake", "andrews-squeezer-motor"): "Drake: K1.theta 4.5x its bound (torque-driven, first-order step)",
+    ("drake", "slider-driven-slider-crank"): "Drake: conrod.ax 5.4x its bound (a peak of 0.105 m/s²)",
+}
+
+
+def _pairs():
+    for engine in ENGINES:
+        for name in BUILTIN:
+            if "hard" in builtin_scenario(name).tags:
+                continue
+            reason = OUT_OF_TOLERANCE.get((engine, name))
+            # Slow as well: a known miss needs no re-run in every default
+            # suite (Drake's take 0.8–8.6 s each), and `-m slow` keeps it honest.
+            yield pytest.param(engine, name, marks=[pytest.mark.xfail(strict=True, reason=reason), pytest.mark.slow]) \
+                if reason else pytest.param(engine, name)
+
+
 @pytest.mark.engine
-@pytest.mark.parametrize("scenario_name", [n for n in BUILTIN if "hard" not in builtin_scenario(n).tags])
-@pytest.mark.parametrize("engine_name", ENGINES)
+@pytest.mark.parametrize("engine_name, scenario_name", list(_pairs()))
 def test_engine_matches_reference(engine_name, scenario_name, mechval_compare):
     mechval_compare(builtin_scenario(scenario_name), engine_name)
 

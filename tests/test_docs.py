@@ -110,7 +110,7 @@ def test_tolerance_table_matches_the_defaults():
     assert {r[0].strip("`"): float(r[1]) for r in rows} == DEFAULT_TOLERANCE
 
 
-ENGINE_TITLES = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "exudyn": "Exudyn"}
+ENGINE_TITLES = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "exudyn": "Exudyn", "drake": "Drake"}
 
 
 @pytest.mark.engine

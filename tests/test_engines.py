@@ -7,24 +7,12 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import BUILTIN, ENGINES, builtin_scenario, engine_or_skip
+from conftest import BUILTIN, ENGINES, OUT_OF_TOLERANCE, builtin_scenario, engine_or_skip
 from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance
 from mechval.harness.simulate import simulate
 
 
-#: (engine, built-in) pairs out of the default tolerances at the engine's
-#: default settings, each an engine finding with its measured figure
-#: (docs/engines.md): strict xfails, so that a fix shows.
-OUT_OF_TOLERANCE = {
-    # Drake 1.51.1: its discrete step is first order (each error halves
-    # with the step; the variant high-accuracy meets all but the falling
-    # four-bar, 2.2x); worst signal over its bound, `mechval run --engine drake`.
-    ("drake", "fourbar-falling"): "Drake: theta2 21.7x its bound (free fall, first-order step)",
-    ("drake", "slider-crank-motor"): "Drake: theta2 9.6x its bound (torque-driven, first-order step)",
-    ("drake", "andrews-squeezer-motor"): "Drake: K1.theta 4.5x its bound (torque-driven, first-order step)",
-    ("drake", "slider-driven-slider-crank"): "Drake: conrod.ax 5.4x its bound (a peak of 0.105 m/s²)",
-}
 
 
 def _pairs():

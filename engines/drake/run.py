@@ -14,7 +14,7 @@ import pandas as pd
 
 from pydrake.systems.analysis import Simulator
 
-from mechval.judging.health import drive_errors
+from mechval.judging.health import drive_errors, mechanism_size
 from mechval.model.kinematics import joint_gaps, point_motion, rotate
 from mechval.model.mechanism import GROUND, Mechanism, SpringDamper
 from mechval.records import engine_inputs
@@ -30,6 +30,11 @@ from mechval.engines.drake.topology import Topology, coordinates, topology
 #: the rounding of n·dt; the sources read there (the drive's desired state)
 #: are off by this fraction of one step's change, far below any tolerance.
 STEP_MARGIN = 1e-9
+
+
+#: A drive this far off its path (rad; a slide's error over the mechanism's
+#: size) has lost it: its PD lag T/Kp is 1e-8 rad on the built-ins.
+BLOWN_DRIVE_ERROR = 0.1
 
 
 @dataclass(frozen=True)
@@ -112,14 +117,33 @@ class Run:
             rows.append(self.read(plant_context))
         wall = time.perf_counter() - clock
         frame = self.frame(rows)
+        blown = self.blown_up(frame)
+        if blown is not None:
+            frame.iloc[blown:, 1:] = np.nan
         motion = frame[["t"] + self.mech.motion_columns()]
         facts = {"wall_time_s": wall, "steps": int(round((self.times[-1] - self.start.t0) / self.dt)),
                  "preroll_steps_used": self.start.steps,
                  "closure_gap_max": float(joint_gaps(self.mech, motion).max()),
                  "drive_gains": " ".join(f"{kp:.6g} {kd:.6g}" for kp, kd in m.gains) or "none"}
+        if blown is not None:
+            facts["blown_up_at"] = float(self.times[blown])
         if self.mech.drives:
             facts["drive_error_max"] = float(drive_errors(self.mech, motion).max())
         return frame, facts
+
+    def blown_up(self, frame: pd.DataFrame) -> int | None:
+        """The first sample where Drake's model has come apart (a joint
+        gap beyond the mechanism's size, a drive off its path by more than
+        BLOWN_DRIVE_ERROR, or a value that is not finite), or None. Drake's SAP step does not stop on a blow-up (gravity
+        1e49 runs on to forces of 1e305): from that sample on the run's
+        values are NaN with no reason, so the comparison fails, as for a
+        blow-up in any engine."""
+        with np.errstate(all="ignore"):
+            values = frame.to_numpy(dtype=float)
+            gaps = joint_gaps(self.mech, frame)
+            lost = drive_errors(self.mech, frame) if self.mech.drives else np.zeros(len(frame))
+        bad = ~np.isfinite(values).all(axis=1) | ~(gaps <= mechanism_size(self.mech)) | ~(lost <= BLOWN_DRIVE_ERROR)
+        return int(np.argmax(bad)) if bad.any() else None
 
     def sample_steps(self) -> np.ndarray:
         """The step count from t0 at every sample (the step divides the

@@ -147,7 +147,7 @@ def build(mech: Mechanism, topo: Topology, settings: Mapping[str, Any], t0: floa
         builder.Connect(feed_forward.get_output_port(), plant.get_actuation_input_port(instance))
     if mech.torque_drives or any(isinstance(f, BodyTorque) for f in mech.forces) or \
             any(c.damping for c in topo.cuts):
-        applied = builder.AddSystem(AppliedForces(mech, topo, plant, bodies, t0))
+        applied = builder.AddSystem(AppliedForces(mech, topo, plant, bodies, joints, t0))
         builder.Connect(plant.get_state_output_port(), applied.get_input_port())
         builder.Connect(applied.get_output_port(), plant.get_applied_spatial_force_input_port())
     diagram = builder.Build()
@@ -218,47 +218,53 @@ class AppliedForces(LeafSystem):
     """The spatial forces Drake applies that are not its own elements:
     each body torque, each torque law (T on body_j, −T on body_i, its law
     at the step's start time), each cut pin's damper (−c·(ω_j − ω_i) on
-    body_j, the opposite on body_i, from the step's start state). Input:
+    body_j, the opposite on body_i, from the step's start state: a body's
+    ω is the sum of the hinge rates on its tree path, `cut_rates`). Input:
     the plant's state; output: a list of ExternallyAppliedSpatialForce."""
 
     def __init__(self, mech: Mechanism, topo: Topology, plant: MultibodyPlant, bodies: Mapping[str, Any],
-                 t0: float):
+                 joints: Mapping[str, Any], t0: float):
         super().__init__()
-        self.mech, self.plant, self.bodies, self.t0 = mech, plant, bodies, t0
-        self.plant_context = plant.CreateDefaultContext()
+        self.mech, self.t0 = mech, t0
+        self.moving = [b.name for b in mech.bodies]
+        self.index = {name: bodies[name].index() for name in self.moving}
+        self.nq = plant.num_positions()
+        self.constant = dict.fromkeys(self.moving, 0.0)
+        for force in mech.forces:
+            if isinstance(force, BodyTorque):
+                self.constant[force.body] += force.torque
         self.cuts = [c for c in topo.cuts if c.damping]
+        self.cut_rates = np.zeros((len(self.cuts), plant.num_velocities()))
+        for k, cut in enumerate(self.cuts):
+            for name, coef in topo.angle_coefficients(cut).items():
+                self.cut_rates[k, joints[name].velocity_start()] += coef
         self.DeclareVectorInputPort("state", plant.num_multibody_states())
         self.DeclareAbstractOutputPort("forces", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce_[float]()]),
                                        self.calc)
 
-    def torques(self, t: float, state: np.ndarray | None) -> dict[str, float]:
-        """z torque per moving body at time t (state: the plant's, for
+    def torques(self, t: float, velocities: np.ndarray | None) -> dict[str, float]:
+        """z torque per moving body at time t (velocities: the plant's, for
         cut dampers)."""
-        out: dict[str, float] = {}
-        add = lambda body, tau: out.__setitem__(body, out.get(body, 0.0) + tau) if body != GROUND else None
-        for force in self.mech.forces:
-            if isinstance(force, BodyTorque):
-                add(force.body, force.torque)
+        out = dict(self.constant)
+        add = lambda body, tau: out.__setitem__(body, out[body] + tau) if body != GROUND else None
         for law in self.mech.torque_drives:
             joint, value = self.mech.joint(law.joint), float(law.value(t))
             add(joint.body_j, value)
             add(joint.body_i, -value)
-        if self.cuts and state is not None:
-            self.plant.SetPositionsAndVelocities(self.plant_context, state)
-            rate = lambda b: 0.0 if b == GROUND else float(
-                self.bodies[b].EvalSpatialVelocityInWorld(self.plant_context).rotational()[2])
-            for cut in self.cuts:
-                tau = -cut.damping * (rate(cut.body_j) - rate(cut.body_i))
-                add(cut.body_j, tau)
-                add(cut.body_i, -tau)
+        if self.cuts:
+            for cut, rate in zip(self.cuts, self.cut_rates @ velocities):
+                add(cut.body_j, -cut.damping * rate)
+                add(cut.body_i, cut.damping * rate)
         return out
 
     def calc(self, context, output) -> None:
-        state = self.get_input_port().Eval(context) if self.cuts else None
+        velocities = self.get_input_port().Eval(context)[self.nq:] if self.cuts else None
         forces = []
-        for body, tau in self.torques(self.t0 + context.get_time(), state).items():
+        for body, tau in self.torques(self.t0 + context.get_time(), velocities).items():
+            if tau == 0.0:
+                continue
             f = ExternallyAppliedSpatialForce_[float]()
-            f.body_index = self.bodies[body].index()
+            f.body_index = self.index[body]
             f.p_BoBq_B = np.zeros(3)
             f.F_Bq_W = SpatialForce([0.0, 0.0, tau], [0.0, 0.0, 0.0])
             forces.append(f)

@@ -70,3 +70,36 @@ def test_loops_are_cut_between_moving_bodies():
     for name in ("fourbar-seed", "slider-crank", "shaper-quick-return", "hand-pump", "watt-six-bar", "jansen-leg"):
         cuts = topology(build_mechanism(load(name))).cuts
         assert cuts and all(GROUND not in (c.body_i, c.body_j) for c in cuts), name
+
+
+def _wrong_revolute(damping: float = 0.0, limit: float | None = None):
+    """A RevoluteJoint factory that gives joint "j1" (the four-bar's A, the
+    first pin after the drive) a damper or a position limit."""
+    from pydrake.multibody.tree import RevoluteJoint
+
+    def make(name, parent, child, axis, default_damping):
+        joint = RevoluteJoint(name, parent, child, axis, default_damping + (damping if name == "j1" else 0.0))
+        if name == "j1" and limit is not None:
+            joint.set_position_limits([-limit], [limit])
+        return joint
+    return make
+
+
+@pytest.mark.parametrize("fault, rows", [
+    ("damping", {("joint A", "damping")}),
+    ("limit", {("scene", "joint limits")}),
+])
+def test_the_audit_catches_a_wrong_model(monkeypatch, fault, rows):
+    """A plant built with one quantity wrong (a damper Drake adds at A, a
+    position limit on A) fails exactly the rows that read it."""
+    from mechval.engines.drake import model as drake_model
+    from mechval.records.audit import failures
+    from mechval.reference.linkages import build_mechanism
+    from mechval.scenarios import load
+    from mechval.engines.registry import adapter
+    monkeypatch.setattr(drake_model, "RevoluteJoint", _wrong_revolute(**({"damping": 0.1} if fault == "damping"
+                                                                        else {"limit": 100.0})))
+    scenario = load("fourbar-seed")
+    mech, engine = build_mechanism(scenario), adapter("drake")
+    table = engine.audit(mech, scenario.time.t, engine.settings_for(scenario, mech))
+    assert {(r.item, r.quantity) for r in failures(table).itertuples()} == rows

@@ -25,7 +25,7 @@ from typing import Any, Mapping
 import numpy as np
 import pandas as pd
 
-from pydrake.multibody.tree import ForceElementIndex, LinearSpringDamper, PrismaticJoint, RevoluteJoint, UniformGravityFieldElement
+from pydrake.multibody.tree import ForceElementIndex, LinearSpringDamper, UniformGravityFieldElement
 
 from mechval.model.mechanism import GROUND, BodyTorque, Joint, Mechanism, SpringDamper
 from mechval.records.audit import (SCENE, ModelReader, Reading, axis_readings, bodies_text, body_item, drive_item,
@@ -78,7 +78,7 @@ class Reader(ModelReader):
                     + [Reading(item, "damping", joint.damping, "Applied as torques each step (AppliedForces).",
                                "set")])
         drake_joint = self.model.joints[joint.name]
-        kind = {RevoluteJoint: "revolute", PrismaticJoint: "prismatic"}.get(type(drake_joint), type(drake_joint).__name__)
+        kind = drake_joint.type_name()            # "revolute", "prismatic", or what else Drake built
         parent, child = (self.name_of[drake_joint.parent_body().index()], self.name_of[drake_joint.child_body().index()])
         anchors = {parent: self._frame_origin(drake_joint.frame_on_parent()),
                    child: self._frame_origin(drake_joint.frame_on_child())}

@@ -190,11 +190,11 @@ def coordinate_inertia(mech: Mechanism, topo: Topology, tj, motion: Mapping[str,
 
 
 def set_position(joint, context, q: float) -> None:
-    (joint.set_angle if isinstance(joint, RevoluteJoint) else joint.set_translation)(context, q)
+    (joint.set_angle if joint.type_name() == "revolute" else joint.set_translation)(context, q)
 
 
 def set_rate(joint, context, v: float) -> None:
-    (joint.set_angular_rate if isinstance(joint, RevoluteJoint) else joint.set_translation_rate)(context, v)
+    (joint.set_angular_rate if joint.type_name() == "revolute" else joint.set_translation_rate)(context, v)
 
 
 def desired_states(mech: Mechanism, topo: Topology, t0: float, t_end: float, dt: float) -> PiecewisePolynomial:

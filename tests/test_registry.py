@@ -117,7 +117,8 @@ def test_the_builtins_are_mechvals_own_entry_points(monkeypatch):
     entry point found there is no engine but the reference."""
     own = [e for e in importlib.metadata.distribution("mechval").entry_points if e.group == registry.ENTRY_POINT_GROUP]
     assert {e.name: e.value for e in own} == {"mujoco": MUJOCO, "pybullet": "mechval.engines.pybullet.adapter:PybulletAdapter",
-                                             "exudyn": "mechval.engines.exudyn.adapter:ExudynAdapter"}
+                                             "exudyn": "mechval.engines.exudyn.adapter:ExudynAdapter",
+                                             "drake": "mechval.engines.drake.adapter:DrakeAdapter"}
     assert registry.engine_names()[:len(ENGINES)] == ENGINES == tuple(e.name for e in own)
     monkeypatch.setattr(importlib.metadata, "entry_points", lambda **_: [])
     registry.targets.cache_clear()

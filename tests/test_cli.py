@@ -24,7 +24,7 @@ def mechval(*args, cwd=None):
 def test_list_names_scenarios_and_engines():
     out = mechval("list")
     assert out.returncode == 0, out.stderr
-    for word in ("fourbar-seed", "slider-crank", "reference", "mujoco", "pybullet", "exudyn"):
+    for word in ("fourbar-seed", "slider-crank", "reference", "mujoco", "pybullet", "exudyn", "drake"):
         assert word in out.stdout
     assert "engines (installed: the library found and its version, not imported; a run imports it):" in out.stdout
 
@@ -93,7 +93,7 @@ def test_bad_file_is_refused_cleanly(tmp_path):
 
 def test_unknown_engine_lists_available(tmp_path):
     out = mechval("simulate", "fourbar-seed", "--engine", "bullet3", "--csv", tmp_path / "x.csv")
-    assert out.returncode == 2 and "available: reference, exudyn, mujoco, pybullet" in out.stderr
+    assert out.returncode == 2 and "available: reference, drake, exudyn, mujoco, pybullet" in out.stderr
     assert "Traceback" not in out.stderr
 
 

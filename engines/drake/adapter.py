@@ -75,12 +75,14 @@ class DrakeAdapter(EngineAdapter):
         # constraints' regularisation, as a fraction of the step.
         "near_rigid_threshold": Number(0.0, 1.0, low_open=True),
     }
-    #: "high-accuracy": a quarter of the step, the default (stiffest measured) drive
-    #: (figures in docs/engines.md).
-    variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
-        "default": {}, "high-accuracy": {"refine": 4, "drive_stiffness": 1e4}}
+    #: High accuracy is a finer step, `refine = 4` (a quarter of it: every
+    #: error of the first-order step falls fourfold; tests/test_drake.py
+    #: holds it), not a reported variant: each variant is re-run by every
+    #: baseline check of the default test suite, and Drake's share of that
+    #: suite is over budget already (docs/engines.md, Drake: Speed).
+    variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
-        "SAP": {}, "SAP stiff drive": {"drive_stiffness": 1e4}}
+        "SAP": {}, "SAP soft drive": {"drive_stiffness": 100.0}}
     step_settings = ("timestep", "refine", "preroll_steps")
     #: Not redundant constraints: not built or measured yet.
     features: ClassVar[frozenset[str]] = frozenset(FEATURES) - {"redundant constraints"}

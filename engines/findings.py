@@ -16,7 +16,7 @@ from mechval.engines.registry import EngineUnavailable, adapter
 
 #: Engine name → module with FINDINGS (records) and PROBES (key → probe).
 PROBE_MODULES = {"pybullet": "mechval.engines.pybullet.findings", "pinocchio": "mechval.engines.pinocchio.findings",
-                 "opensim": "mechval.engines.opensim.findings"}
+                 "opensim": "mechval.engines.opensim.findings", "drake": "mechval.engines.drake.findings"}
 
 
 def measure_findings(engines: Iterable[str]) -> list[Measurement]:

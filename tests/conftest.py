@@ -37,8 +37,25 @@ CLOSED_FORM = [name for name in BUILTIN if builtin_scenario(name).mechanism != "
 CANNOT_RUN = {("exudyn", "planar-extra/parallelogram-double-fourbar"):
               "parallelogram-double-fourbar.toml: joint: exudyn: cannot run redundant constraints",
               ("exudyn", "planar-extra/double-fourbar-falling"):
-              "double-fourbar-falling.toml: joint: exudyn: cannot run redundant constraints"}
+              "double-fourbar-falling.toml: joint: exudyn: cannot run redundant constraints",
+              ("drake", "planar-extra/parallelogram-double-fourbar"):
+              "parallelogram-double-fourbar.toml: joint: drake: its adapter does not build redundant constraints",
+              ("drake", "planar-extra/double-fourbar-falling"):
+              "double-fourbar-falling.toml: joint: drake: its adapter does not build redundant constraints"}
 
+
+#: (engine, built-in) pairs out of the default tolerances at the engine's
+#: default settings, each an engine finding with its measured figure
+#: (docs/engines.md): strict xfails, so that a fix shows.
+OUT_OF_TOLERANCE = {
+    # Drake 1.51.1: its discrete step is first order (each error halves
+    # with the step; the variant high-accuracy meets all but the falling
+    # four-bar, 2.2x); worst signal over its bound, `mechval run --engine drake`.
+    ("drake", "fourbar-falling"): "Drake: theta2 21.7x its bound (free fall, first-order step)",
+    ("drake", "slider-crank-motor"): "Drake: theta2 9.6x its bound (torque-driven, first-order step)",
+    ("drake", "andrews-squeezer-motor"): "Drake: K1.theta 4.5x its bound (torque-driven, first-order step)",
+    ("drake", "slider-driven-slider-crank"): "Drake: conrod.ax 5.4x its bound (a peak of 0.105 m/s²)",
+}
 
 def builtin_reference(name: str):
     """The reference on a built-in, solved once per session (shared with

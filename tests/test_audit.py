@@ -21,7 +21,7 @@ from mechval.reference.linkages import build_mechanism
 from mechval.reports.audit import audit_section
 from mechval.harness.simulate import simulate
 
-ENGINES = ("mujoco", "pybullet", "exudyn", "pinocchio")
+ENGINES = ("mujoco", "pybullet", "exudyn", "pinocchio", "opensim", "drake")
 
 
 # -- the comparison rule (no engine) ---------------------------------------------

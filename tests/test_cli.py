@@ -24,7 +24,7 @@ def mechval(*args, cwd=None):
 def test_list_names_scenarios_and_engines():
     out = mechval("list")
     assert out.returncode == 0, out.stderr
-    for word in ("fourbar-seed", "slider-crank", "reference", "mujoco", "pybullet", "exudyn"):
+    for word in ("fourbar-seed", "slider-crank", "reference", "mujoco", "pybullet", "exudyn", "drake"):
         assert word in out.stdout
     assert "engines (installed: the library found and its version, not imported; a run imports it):" in out.stdout
 

@@ -111,7 +111,7 @@ def test_tolerance_table_matches_the_defaults():
 
 
 ENGINE_TITLES = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "exudyn": "Exudyn", "pinocchio": "Pinocchio",
-                 "opensim": "OpenSim"}
+                 "opensim": "OpenSim", "drake": "Drake"}
 
 
 @pytest.mark.engine

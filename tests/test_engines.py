@@ -7,15 +7,28 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import BUILTIN, ENGINES, builtin_scenario, engine_or_skip
+from conftest import BUILTIN, ENGINES, OUT_OF_TOLERANCE, builtin_scenario, engine_or_skip
 from mechval.judging.compare import compare
 from mechval.testing import assert_within_tolerance
 from mechval.harness.simulate import simulate
 
 
+
+
+def _pairs():
+    for engine in ENGINES:
+        for name in BUILTIN:
+            if "hard" in builtin_scenario(name).tags:
+                continue
+            reason = OUT_OF_TOLERANCE.get((engine, name))
+            # Slow as well: a known miss needs no re-run in every default
+            # suite (Drake's take 0.8–8.6 s each), and `-m slow` keeps it honest.
+            yield pytest.param(engine, name, marks=[pytest.mark.xfail(strict=True, reason=reason), pytest.mark.slow]) \
+                if reason else pytest.param(engine, name)
+
+
 @pytest.mark.engine
-@pytest.mark.parametrize("scenario_name", [n for n in BUILTIN if "hard" not in builtin_scenario(n).tags])
-@pytest.mark.parametrize("engine_name", ENGINES)
+@pytest.mark.parametrize("engine_name, scenario_name", list(_pairs()))
 def test_engine_matches_reference(engine_name, scenario_name, mechval_compare):
     mechval_compare(builtin_scenario(scenario_name), engine_name)
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-ENGINE_LIBRARIES = ("mujoco", "pybullet", "pybullet_data", "exudyn", "pinocchio")
+ENGINE_LIBRARIES = ("mujoco", "pybullet", "pybullet_data", "exudyn", "pinocchio", "opensim", "pydrake")
 BLOCKED = "engine libraries blocked"
 SITECUSTOMIZE = f'''
 import sys

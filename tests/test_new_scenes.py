@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import andrews as A
-from conftest import CANNOT_RUN, ENGINES, builtin_scenario, engine_or_skip
+from conftest import CANNOT_RUN, ENGINES, OUT_OF_TOLERANCE, builtin_scenario, engine_or_skip
 from mechval.judging.compare import compare
 from mechval.harness.simulate import simulate
 from mechval.judging.health import joint_gaps
@@ -111,8 +111,10 @@ PYBULLET_MOMENTS = ("PyBullet's reported pin loads on the redundant parallelogra
 @pytest.mark.engine
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("name", NEW)
-def test_engine_meets_the_tolerances_at_its_default_setting(name, engine):
+def test_engine_meets_the_tolerances_at_its_default_setting(name, engine, request):
     engine_or_skip(engine)
+    if (engine, name) in OUT_OF_TOLERANCE:          # an engine finding with its figure (conftest.py)
+        request.applymarker(pytest.mark.xfail(strict=True, reason=OUT_OF_TOLERANCE[engine, name]))
     scenario = builtin_scenario(name)
     if (engine, name) in CANNOT_RUN:
         with pytest.raises(Exception, match=CANNOT_RUN[engine, name]):

@@ -119,7 +119,8 @@ def test_the_builtins_are_mechvals_own_entry_points(monkeypatch):
     assert {e.name: e.value for e in own} == {"mujoco": MUJOCO, "pybullet": "mechval.engines.pybullet.adapter:PybulletAdapter",
                                              "exudyn": "mechval.engines.exudyn.adapter:ExudynAdapter",
                                              "pinocchio": "mechval.engines.pinocchio.adapter:PinocchioAdapter",
-                                             "opensim": "mechval.engines.opensim.adapter:OpensimAdapter"}
+                                             "opensim": "mechval.engines.opensim.adapter:OpensimAdapter",
+                                             "drake": "mechval.engines.drake.adapter:DrakeAdapter"}
     assert registry.engine_names()[:len(ENGINES)] == ENGINES == tuple(e.name for e in own)
     monkeypatch.setattr(importlib.metadata, "entry_points", lambda **_: [])
     registry.targets.cache_clear()

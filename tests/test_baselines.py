@@ -173,8 +173,12 @@ def test_thresholds_tell_apart_what_they_must_on_the_committed_baselines():
     data: an engine upgrade (MuJoCo 3.3.7 → 4.0.0) moves some signal of
     every baseline by at least 1e-3 of its peak (measured 1.7e-3 to 6.3e-2),
     ≥ 10⁶ × DEFAULT_RTOL; and α2 of a constant-speed crank, zero in theory,
-    is exactly 0 or an integration residue ≥ 1e-8 rad/s² (measured 9.2e-8 to
-    1.1e-5), ≥ 10⁴ × ABSOLUTE_FLOOR."""
+    is exactly 0, an integration residue ≥ 1e-8 rad/s² (measured 9.2e-8 to
+    1.1e-5), ≥ 10⁴ × ABSOLUTE_FLOOR, or, in an exact-constraint engine that
+    imposes the drive's acceleration (Pinocchio, OpenSim), a rounding
+    residue (measured 1.4e-13 to 2.3e-12) that the threshold covers twice
+    over: the floor or the sensitivity margin, so a machine whose rounding
+    differs does not flag it."""
     old, new = ROOT / "mujoco" / "3.3.7", ROOT / "mujoco" / "4.0.0"
     pairs = [(path, new / path.relative_to(old)) for path in sorted(old.rglob("*.csv"))]
     assert pairs and all(after.exists() for _, after in pairs)
@@ -193,8 +197,11 @@ def test_thresholds_tell_apart_what_they_must_on_the_committed_baselines():
     steady = [p for p, law in laws.items() if law.alpha == 0.0 and law.omega0 != 0.0]
     assert steady
     for path in steady:
-        residue = float(np.abs(store.load(path).signals[crank_alpha(builtin_scenario(path.parent.name))]).max())
-        assert residue == 0.0 or residue >= 1e4 * bl.ABSOLUTE_FLOOR, (path, residue)
+        stored = store.load(path)
+        alpha = crank_alpha(builtin_scenario(path.parent.name))
+        residue = float(np.abs(stored.signals[alpha]).max())
+        covered = max(bl.ABSOLUTE_FLOOR, bl.SENSITIVITY_MARGIN * stored.sensitivity.get(alpha, 0.0))
+        assert residue == 0.0 or residue >= 1e4 * bl.ABSOLUTE_FLOOR or 2 * residue <= covered, (path, residue)
 
 
 def class_peaks(signals: Signals) -> dict[str, float]:

@@ -225,6 +225,12 @@ def test_step_estimate_matches_the_engines_own_count():
     for engine in ENGINES:
         signals = simulate(scene, engine_or_skip(engine))
         size = run_size(scene, engine, signals.settings)
+        if engine == "opensim":
+            # Simbody's error-controlled steps are its own and OpenSim's
+            # Python API reports no count: the estimate is one step per
+            # `max_step` (its cap): the fewest steps the run can take.
+            assert signals.info.steps is None and size.steps >= 1, engine
+            continue
         assert size.steps + (engine == "pybullet") == signals.info.steps, engine
 
 
@@ -245,8 +251,7 @@ def no_engine_work(monkeypatch):
     """Fail if any engine (or the reference for a report) starts working."""
     def started(*args, **kwargs):
         raise AssertionError("engine work started before the refusal")
-    for module, name in [("run", "run_tasks"), ("run", "references_for"), ("cost", "sweep"),
-                         ("simulate", "simulate")]:
+    for module, name in [("run", "run_alongside"), ("cost", "sweep"), ("simulate", "simulate")]:
         monkeypatch.setattr(importlib.import_module(f"mechval.harness.{module}"), name, started)
 
 

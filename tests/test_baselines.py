@@ -230,7 +230,17 @@ def test_every_committed_baseline_of_an_installed_version_records_its_inputs_and
         assert set(base.sensitivity) == set(base.signals.frame.columns), path
         peaks = class_peaks(base.signals)
         worst = max(bl.SENSITIVITY_MARGIN * base.sensitivity[c] / peaks[c] for c in peaks if peaks[c] > 0)
-        assert worst < 1e-4, (path, worst)
+        assert worst < MARGIN_OF_CLASS_PEAK.get(base.meta["engine"], 1e-4), (path, worst)
+
+
+#: Engines whose own arithmetic amplifies the inputs' last bits beyond
+#: 1e-6 of a class peak, with the reason and the measured figure: Drake's
+#: prescribed drive is a PD servo of stiffness Kp = 1e4·m/dt² (docs/engines.md,
+#: Drake), so one ulp of the fed angle moves its torque by Kp·ulp (1.4e-6 of
+#: T12's class peak on slider-crank-offset, a threshold of 1.4e-4 of it: still
+#: 70 times under the default torque tolerance and 12 times under an upgrade's
+#: smallest move).
+MARGIN_OF_CLASS_PEAK = {"drake": 1e-3}
 
 
 def test_the_scenario_hash_is_of_physics_not_of_how_mechval_holds_it():
@@ -344,7 +354,13 @@ def test_check_catches_and_explains_changes(any_engine, tmp_path, capsys):
     path = next(tmp_path.rglob("default.csv"))
     original, original_bytes = store.load(path), path.read_bytes()
 
-    perturbed(original.signals, "T12", 1 + 1e-7).to_csv(path)
+    # A move of 10 × T12's threshold (at least 1e-7 of it): beyond what the
+    # check lets through on any engine (Drake's stiff drive servo raises
+    # its threshold, `MARGIN_OF_CLASS_PEAK`).
+    t12 = original.signals["T12"]
+    threshold = max(bl.DEFAULT_RTOL * float(np.nanmax(np.abs(t12))),
+                    bl.SENSITIVITY_MARGIN * original.sensitivity.get("T12", 0.0), bl.ABSOLUTE_FLOOR)
+    perturbed(original.signals, "T12", 1 + max(1e-7, 10 * threshold / float(np.nanmax(np.abs(t12))))).to_csv(path)
     assert baseline_cli("check", "--engine", any_engine, "--dir", str(tmp_path)) == 1
     out = capsys.readouterr().out
     assert "T12" in out and "regression" in out and "verdict: REGRESSION" in out

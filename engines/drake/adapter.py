@@ -96,8 +96,9 @@ class DrakeAdapter(EngineAdapter):
     def default_settings(self, mechanism: Mechanism, times: np.ndarray,
                          rates: PeakRates | None = None) -> dict[str, Any]:
         """The shared step rule (0.01 rad per step of the fastest motion,
-        ≤ 1 ms); drive_stiffness 100 (a lag T/Kp of 1 % of what the drive's
-        own inertia gives in one step squared: 3e-7 rad on fourbar-seed),
+        ≤ 1 ms); drive_stiffness 1e4 (a lag T/Kp of 1e-4 of what the
+        drive's own inertia gives in one step squared: 2.2e-8 rad on
+        fourbar-seed; fourbar-mass-ratio needs it),
         no drive damping (the implicit PD needs none, and a Kd pulls v
         toward the desired rate against Kp); a pre-roll of 20 steps
         (none for a torque-driven or free run); SAP's near-rigid threshold

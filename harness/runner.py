@@ -63,8 +63,10 @@ def tasks_for(scenarios: Iterable[Scenario | Plan], engines: Iterable[str]) -> l
                 # Bad [engines.NAME] settings are the user's input: refuse them
                 # here, with file and key, rather than as a failed run.
                 settings = plan.settings(engine_adapter, overrides)
-                step = settings.get(engine_adapter.step_setting)
-                steps = scenario.time.end / step if isinstance(step, float) and step > 0 else 0.0
+                # The declared run size (a refined step, a pre-roll count too):
+                # what `longest_first` orders by.
+                per_interval, preroll = engine_adapter.planned_steps(scenario.time.t, settings)
+                steps = per_interval * max(len(scenario.time.t) - 1, 1) + preroll
                 tasks.append(Task(scenario, engine, setting, dict(overrides), steps, settings=settings))
     return tasks
 

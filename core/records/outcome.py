@@ -23,8 +23,9 @@ class Task:
     engine: str
     setting: str = "default"
     overrides: Mapping[str, Any] = field(default_factory=dict)
-    #: Engine steps the run takes (simulated time / step), its expected
-    #: cost: `run_tasks` starts the longest runs first.
+    #: Engine steps the run takes (its declared run size, `planned_steps`:
+    #: a refined step and a pre-roll counted), its expected cost:
+    #: `run_tasks` starts the longest runs first.
     steps: float = 0.0
     #: A regression check's recorded settings and reference reads, fed to
     #: the engine instead of being derived anew (`mechval.records.engine_inputs`).

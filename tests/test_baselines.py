@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import re
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -95,7 +95,10 @@ def test_missing_baseline_of_the_installed_version_fails_not_skips(any_engine, t
         pytest.fail("passed without a baseline of the installed version")
     assert f"no baseline for the installed {any_engine} {installed}" in message
     assert f"for information only, the newest stored version ({any_engine} 0.0.1)" in message
-    assert "signals: all" in message        # the comparison with 0.0.1 is shown
+    # The comparison with 0.0.1 is shown. Its run is not fed (another
+    # version), so under another OpenBLAS kernel a few signals move in the
+    # last bits ("12 of 18 bit-identical", within): no bit-identity asked.
+    assert re.search(r"signals: (all \d+ bit-identical|\d+ of \d+ bit-identical)", message), message
     assert (f"mechval baseline save {CLI_SCENARIO} --engine {any_engine} --dir {tmp_path / 'baselines'}"
             in message)
 

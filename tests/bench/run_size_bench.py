@@ -20,13 +20,13 @@ import sys
 DENSE = 300_001
 
 CHILD = r"""
-import dataclasses, json, resource, sys, time
-from mechval.model.drive import DriveLaw
-from mechval.model.scenario import TimeGrid
-from mechval.scenarios import load
+import json, resource, sys, time, tomllib
+from mechval.scenarios import builtin_path, parse
 from mechval.harness.simulate import simulate
 engine, end, samples = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
-scene = dataclasses.replace(load("fourbar-seed"), time=TimeGrid(end, samples), drive=DriveLaw(0.0, 10.0, 0.0))
+data = tomllib.loads(builtin_path("fourbar-seed").read_text(encoding="utf-8"))
+data.update(time={"end": end, "samples": samples}, drive={"phi0": 0.0, "omega0": 10.0, "alpha": 0.0})
+scene = parse(data, "fourbar-seed-sized.toml")
 from mechval.engines.registry import adapter
 engine_adapter = adapter(engine)
 run = lambda: simulate(scene, engine_adapter)

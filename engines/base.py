@@ -106,3 +106,15 @@ def default_step(mechanism: Mechanism, times: np.ndarray, rad_per_step: float = 
     rate = peak_rates(mechanism, times).rate if rate is None else rate
     dt = min(rad_per_step / max(rate, 1e-12), max_step, interval)
     return interval / int(np.ceil(interval / dt - 1e-9))
+
+
+def closing_start(mech: Mechanism, t: np.ndarray) -> pd.DataFrame:
+    """The reference motion's first row at instants t if the loop closes
+    at every one of them, else no row (the reference refuses them, or
+    gives NaN where the loop cannot close)."""
+    try:
+        with np.errstate(invalid="ignore"):
+            motion = engine_inputs.source_motion(mech)(t)
+    except ValueError:                    # the reference refuses those instants
+        return pd.DataFrame()
+    return motion.iloc[:1].reset_index(drop=True) if np.all(np.isfinite(motion.to_numpy())) else pd.DataFrame()

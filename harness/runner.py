@@ -79,13 +79,6 @@ def run_tasks(tasks: list[Task], workers: int = 0, timeout: float = 900.0,
     (default: a local pool of `workers`); failures become Outcomes, in the
     tasks' order. The runs with the most steps start first, so that no
     long run is left to finish alone while the other workers idle."""
-    def outcome(task: Task, done: Done) -> Outcome:
-        if done.error:
-            return Outcome(task, None, done.error, worker=done.worker)
-        signals, wall_time, cpu_time, *sensitivity = done.value
-        return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time,
-                       sensitivity=sensitivity[0] if sensitivity else None, worker=done.worker)
-
     outcomes, _ = run_alongside(tasks, (), executor or LocalExecutor(workers or os.cpu_count() or 1, timeout),
                                 on_done, body)
     return outcomes

@@ -19,7 +19,7 @@ from mechval.model.kinematics import joint_gaps, point_motion, rotate
 from mechval.model.mechanism import GROUND, Mechanism, SpringDamper
 from mechval.records import engine_inputs
 
-from mechval.engines.base import reference_motion
+from mechval.engines.base import closing_start, reference_motion
 from mechval.engines.drake.model import DrakeModel, build, set_position, set_rate
 from mechval.engines.drake.topology import Topology, coordinates, topology
 
@@ -56,22 +56,11 @@ def start_of(mech: Mechanism, times: np.ndarray, steps: int, dt: float) -> Start
         t = float(times[0]) - steps * dt + dt * np.arange(steps + 1)
         # One read of the run's inputs (`mechval.records.engine_inputs`): the
         # first row, or none where the loop does not close throughout.
-        first = engine_inputs.read(mech, "closing start", t, None, lambda: _closing_start(mech, t))
+        first = engine_inputs.read(mech, "closing start", t, None, lambda: closing_start(mech, t))
         if len(first):
             return Start(float(t[0]), steps, _columns(first))
         steps //= 2
     return Start(float(times[0]), 0, _columns(reference_motion(mech, np.asarray(times[:1], dtype=float))))
-
-
-def _closing_start(mech: Mechanism, t: np.ndarray) -> pd.DataFrame:
-    """The reference motion's first row at instants t if the loop closes
-    at every one of them, else no row."""
-    try:
-        with np.errstate(invalid="ignore"):
-            motion = engine_inputs.source_motion(mech)(t)
-    except ValueError:                    # the reference refuses those instants
-        return pd.DataFrame()
-    return motion.iloc[:1].reset_index(drop=True) if np.all(np.isfinite(motion.to_numpy())) else pd.DataFrame()
 
 
 def _columns(frame: pd.DataFrame) -> dict[str, np.ndarray]:
@@ -175,7 +164,7 @@ class Run:
     # -- conversion ------------------------------------------------------------
 
     def frame(self, rows: list[dict[str, Any]]) -> pd.DataFrame:
-        mech, plant = self.mech, self.plant
+        mech = self.mech
         cols: dict[str, np.ndarray] = {"t": self.times.copy()}
         for b in mech.bodies:
             idx = self.model.bodies[b.name].index()

@@ -23,6 +23,7 @@ import numpy as np
 from mechval.model.mechanism import GROUND, Joint, Mechanism
 
 from mechval.engines.base import Unrepresentable
+from mechval.engines.spanning_tree import cut_joints
 
 
 @dataclass(frozen=True)
@@ -88,20 +89,7 @@ def topology(mech: Mechanism) -> Topology:
     drives = {d.joint for d in mech.drives}
     rank = lambda j: (0 if j.name in drives else 1 if j.kind == "prismatic" else 2 if GROUND in (j.body_i, j.body_j)
                       else 3 if j.damping == 0.0 else 4)
-    group = {name: name for name in [GROUND] + [b.name for b in mech.bodies]}
-
-    def root(name: str) -> str:
-        while group[name] != name:
-            name = group[name]
-        return name
-
-    cuts = []
-    for j in sorted(mech.joints, key=rank):      # stable: the file's order within each rank
-        a, b = root(j.body_i), root(j.body_j)
-        if a == b:
-            cuts.append(j)
-        else:
-            group[a] = b
+    cuts = cut_joints(mech, rank)
     for j in cuts:
         if j.kind != "revolute" or j.name in drives or GROUND in (j.body_i, j.body_j):
             raise Unrepresentable(f"joint.{j.name}", "the Drake adapter closes each loop with a ball constraint at a "

@@ -54,6 +54,7 @@ from mechval.model.mechanism import GROUND, Joint, Mechanism, SpringDamper
 
 from mechval.engines.base import Unrepresentable
 from mechval.settings import Number, Numbers
+from mechval.engines.spanning_tree import cut_joints
 
 CLOCK = "mechval_clock"
 #: The equalities: the loop closure at the cut pin, the drive.
@@ -143,20 +144,7 @@ def topology(mech: Mechanism, motion0: Mapping[str, np.ndarray]) -> Topology:
     out breadth-first from the ground in the mechanism's joint order."""
     drives = {d.joint for d in mech.drives}
     rank = lambda j: (0 if j.name in drives else 1 if j.kind == "prismatic" else 2)
-    group = {name: name for name in [GROUND] + [b.name for b in mech.bodies]}
-
-    def root(name: str) -> str:
-        while group[name] != name:
-            name = group[name]
-        return name
-
-    cuts = []
-    for j in sorted(mech.joints, key=rank):      # stable: the file's order within each rank
-        a, b = root(j.body_i), root(j.body_j)
-        if a == b:
-            cuts.append(j)
-        else:
-            group[a] = b
+    cuts = cut_joints(mech, rank)
     for j in cuts:
         if j.kind != "revolute" or j.name in drives:
             raise Unrepresentable(f"joint.{j.name}", "MuJoCo adapter closes each loop at a revolute pin that is not "

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from mechval.records import engine_inputs
-from mechval.engines.base import Unrepresentable, reference_motion
+from mechval.engines.base import Unrepresentable, closing_start, reference_motion
 from mechval.model.kinematics import separation_gap, slide_axis
 from mechval.model.mechanism import GROUND, BodyTorque, Mechanism, SpringDamper
 
@@ -474,15 +474,3 @@ class Model:
             u = slide_axis(col, j) if j.kind == "prismatic" else None
             worst = np.maximum(worst, separation_gap(j, p_j[:, 0] - p_i[:, 0], p_j[:, 1] - p_i[:, 1], u))
         return worst
-
-
-def closing_start(mech: Mechanism, t: np.ndarray) -> pd.DataFrame:
-    """The reference motion's first row at instants t if the loop closes
-    at every one of them, else no row (the reference refuses them, or
-    gives NaN where the loop cannot close)."""
-    try:
-        with np.errstate(invalid="ignore"):
-            motion = engine_inputs.source_motion(mech)(t)
-    except ValueError:                    # the reference refuses those instants
-        return pd.DataFrame()
-    return motion.iloc[:1].reset_index(drop=True) if np.all(np.isfinite(motion.to_numpy())) else pd.DataFrame()

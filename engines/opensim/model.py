@@ -24,6 +24,7 @@ import opensim as osim
 
 from mechval.adapter import Unrepresentable
 from mechval.model.mechanism import GROUND, BodyTorque, Drive, Joint, Mechanism, SpringDamper, TorqueLaw
+from mechval.engines.spanning_tree import cut_joints
 
 # OpenSim's logger writes opensim.log into the working directory at its
 # first message: mechval writes no file outside the folder its user names.
@@ -78,20 +79,8 @@ def spanning_tree(mechanism: Mechanism) -> tuple[list[TreeJoint], list[Joint]]:
     loops (Kruskal's rule on the joints ordered by need of a mobilizer)."""
     driven = {d.joint for d in mechanism.drives} | {law.joint for law in mechanism.torque_drives}
     rank = lambda j: (0 if j.name in driven else 1 if j.kind == "prismatic" else 2)    # noqa: E731
-    root = {b.name: b.name for b in mechanism.bodies} | {GROUND: GROUND}
-
-    def find(body: str) -> str:
-        while root[body] != body:
-            body = root[body]
-        return body
-    edges, closing = [], []
-    for joint in sorted(mechanism.joints, key=rank):
-        a, b = find(joint.body_i), find(joint.body_j)
-        if a == b:
-            closing.append(joint)
-        else:
-            root[a] = b
-            edges.append(joint)
+    closing = cut_joints(mechanism, rank)
+    edges = [joint for joint in sorted(mechanism.joints, key=rank) if joint not in closing]
     placed, tree = {GROUND}, []
     while edges:
         joint = next((j for j in edges if j.body_i in placed or j.body_j in placed), None)

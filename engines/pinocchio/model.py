@@ -24,6 +24,7 @@ import pinocchio as pin
 from mechval.model.mechanism import GROUND, Joint, Mechanism
 
 from mechval.engines.base import Unrepresentable
+from mechval.engines.spanning_tree import cut_joints
 
 
 @dataclass(frozen=True)
@@ -107,20 +108,7 @@ def topology(mech: Mechanism) -> tuple[list[tuple[Joint, str, str]], list[Joint]
     constraint, which only a pin is), then the pins in the file's order."""
     drives = {d.joint for d in mech.drives}
     rank = lambda j: 0 if j.name in drives else 1 if j.kind == "prismatic" else 2
-    group = {name: name for name in [GROUND] + [b.name for b in mech.bodies]}
-
-    def root(name: str) -> str:
-        while group[name] != name:
-            name = group[name]
-        return name
-
-    cuts = []
-    for j in sorted(mech.joints, key=rank):
-        a, b = root(j.body_i), root(j.body_j)
-        if a == b:
-            cuts.append(j)
-        else:
-            group[a] = b
+    cuts = cut_joints(mech, rank)
     for j in cuts:
         if j.kind != "revolute" or j.name in drives:
             raise Unrepresentable(f"joint.{j.name}", "the Pinocchio adapter closes each loop at a revolute pin that "

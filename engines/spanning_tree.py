@@ -1,0 +1,31 @@
+"""The loops' cut joints of a mechanism, as the adapters that build a
+spanning tree of joints and close each loop by a constraint choose them."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from mechval.model.mechanism import GROUND, Joint, Mechanism
+
+
+def cut_joints(mech: Mechanism, rank: Callable[[Joint], object]) -> list[Joint]:
+    """The joints left out of a spanning tree grown greedily (Kruskal) over
+    the joints sorted by `rank` (stable: the file's order within a rank):
+    one per independent loop, each closing the loop its tree path makes.
+    An adapter ranks first what must be a tree coordinate (a drive, a
+    slide), so that the cuts fall on what its constraint can close."""
+    group = {name: name for name in [GROUND] + [b.name for b in mech.bodies]}
+
+    def root(name: str) -> str:
+        while group[name] != name:
+            name = group[name]
+        return name
+
+    cuts = []
+    for j in sorted(mech.joints, key=rank):
+        a, b = root(j.body_i), root(j.body_j)
+        if a == b:
+            cuts.append(j)
+        else:
+            group[a] = b
+    return cuts

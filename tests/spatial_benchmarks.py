@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from mechval.model.mechanism import GROUND
-from mechval.reference.spatial.system import SpatialBody, SpatialSystem
+from mechval.reference.spatial.system import SpatialBody, SpatialSystem, Spring
 from spatial_mechanisms import revolute
 
 G = 9.81
@@ -56,3 +56,84 @@ class Bricard:
         ends = [GROUND] + names + [GROUND]
         joints = tuple(revolute(f"P{k}", ends[k], ends[k + 1], P[k], self.axes[k]) for k in range(6))
         self.system = SpatialSystem("Bricard (A04)", bodies, joints, gravity=(0.0, -G, 0.0))
+
+
+def with_point_mass(mass: float, centre, inertia: np.ndarray, point_mass: float, point) -> tuple[float, np.ndarray, np.ndarray]:
+    """A body plus a point mass fixed to it: total mass, centre of mass and
+    inertia about it (parallel-axis theorem)."""
+    centre, point = np.asarray(centre, dtype=float), np.asarray(point, dtype=float)
+    total = mass + point_mass
+    com = (mass * centre + point_mass * point) / total
+    shifted = inertia.copy()
+    for m, p in ((mass, centre), (point_mass, point)):
+        d = p - com
+        shifted = shifted + m * (d @ d * np.eye(3) - np.outer(d, d))
+    return total, com, shifted
+
+
+class FlyballGovernor:
+    """Benchmark A05, the stiff flyball governor: a vertical shaft
+    (1 m × 0.01 m × 0.01 m) on a ground pin about z, a slider (0.1 m cube)
+    on it, two rods (1 m × 0.01 m × 0.01 m) pinned to the shaft's top at
+    ±0.05 m with a 5 kg point mass at each far end, hanging α = 30° below
+    the horizontal; two spring-dampers (k = 8e5 N/m, c = 4e4 N·s/m, rest
+    length 0.5 m) from the slider's sides (±0.05 m) to the rods' midpoints
+    stand in for the coupler rods. Density 3000 kg/m³, gravity −z, slider
+    at s = 0.5 m, shaft spinning at 2π rad/s, 10 s.
+
+    Values: the benchmark's table as the OpenSim implementation states it
+    (RehabEngGroup/MBSbenchmarksInOpenSim, help/benchmarks/
+    A05_FlyballGovernor.rst and src/A05-FlyballGovernor/createModel.cpp,
+    which also fixes the points and axes: pin axes ∥ y, the springs at
+    their rest length in the published assembly)."""
+
+    density, side, length = 3000.0, 0.01, 1.0
+    cube, point_mass, alpha, s0, offset = 0.1, 5.0, np.radians(30.0), 0.5, 0.05
+    stiffness, damping, rest = 8e5, 4e4, 0.5
+    omega0 = 2 * np.pi
+
+    def __init__(self, stiffness: float | None = None, damping: float | None = None):
+        k = self.stiffness if stiffness is None else stiffness
+        c = self.damping if damping is None else damping
+        L, a = self.length, self.side
+        m_bar = self.density * L * a * a
+        z, y = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
+        bodies = [SpatialBody("shaft", m_bar, (0.0, 0.0, L / 2), bar_inertia(m_bar, L, a, z)),
+                  SpatialBody("slider", self.density * self.cube ** 3, (0.0, 0.0, self.s0),
+                              self.density * self.cube ** 5 / 6 * np.eye(3))]
+        joints = [revolute("ground_pin", GROUND, "shaft", (0.0, 0.0, 0.0), z, (1.0, 0.0, 0.0)),
+                  revolute("slide", "shaft", "slider", (0.0, 0.0, self.s0), z, (1.0, 0.0, 0.0), kind="prismatic")]
+        springs = []
+        self.tips = {}
+        for side, name in ((1.0, "rod_right"), (-1.0, "rod_left")):
+            pin = np.array([side * self.offset, 0.0, L])
+            along = np.array([side * np.cos(self.alpha), 0.0, -np.sin(self.alpha)])
+            mid, tip = pin + along * L / 2, pin + along * L
+            mass, com, inertia = with_point_mass(m_bar, mid, bar_inertia(m_bar, L, a, along), self.point_mass, tip)
+            bodies.append(SpatialBody(name, mass, tuple(com), inertia))
+            joints.append(revolute(f"{name}_pin", "shaft", name, pin, y, (1.0, 0.0, 0.0)))
+            springs.append(Spring(f"{name}_spring", "slider", (side * self.cube / 2, 0.0, self.s0), name, tuple(mid),
+                                  k, self.rest, c))
+            self.tips[name] = tip
+        self.system = SpatialSystem("stiff flyball governor (A05)", tuple(bodies), tuple(joints),
+                                    gravity=(0.0, 0.0, -G), springs=tuple(springs))
+
+    @property
+    def velocities(self) -> dict:
+        """Every body turning with the shaft; body frames sit at the world
+        origin on the spin axis, so their origins start at rest."""
+        return {b.name: ((0.0, 0.0, 0.0), (0.0, 0.0, self.omega0)) for b in self.system.bodies}
+
+
+def spring_energy(system: SpatialSystem, origins: dict, rotations: dict) -> np.ndarray:
+    """½·k·(ℓ − ℓ0)² summed over the springs, per instant, from each body's
+    frame origin (N, 3) and rotation (N, 3, 3); points are in body axes."""
+    def world(body, point):
+        if body == GROUND:
+            return np.asarray(point, dtype=float)
+        return origins[body] + rotations[body] @ np.asarray(point, dtype=float)
+    total = 0.0
+    for s in system.springs:
+        length = np.linalg.norm(world(s.body_b, s.point_b) - world(s.body_a, s.point_a), axis=-1)
+        total = total + 0.5 * s.stiffness * (length - s.free_length) ** 2
+    return total

@@ -41,7 +41,10 @@ class Bricard:
     MBSbenchmarksInOpenSim, src/A04-BricardsMechanism/createModel.cpp,
     square cross-section 0.1 m, all pins at angle 0 and speed 0; Exudyn:
     jgerstmayr/EXUDYN, main/pythonDev/TestModels/bricardMechanism.py,
-    the same points and axes, cuboid bars 1 m × 0.1 m × 0.1 m of 1 kg)."""
+    the same points and axes, cuboid bars 1 m × 0.1 m × 0.1 m of 1 kg).
+    The library's own page (lim.ii.udc.es/mbsbenchmark/dist/A04/
+    A04_specification.xml) was in our sources only as far as its header,
+    so the start at rest rests on those two implementations."""
 
     length, mass, side = 1.0, 1.0, 0.1
     points = np.array([[0, 0, 0], [1, 0, 0], [1, -1, 0], [1, -1, 1], [0, -1, 1], [0, 0, 1]], dtype=float)

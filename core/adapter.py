@@ -114,7 +114,7 @@ class Unrepresentable(ValueError):
 #: joint dampers (`mechanism_features`); an adapter lists in `features`
 #: those it builds, and is refused the others before it runs.
 FEATURES = ("several drives", "a prismatic drive", "spring-dampers", "body torques", "torque laws", "free motion",
-            "redundant constraints")
+            "redundant constraints", "spatial")
 
 
 def mechanism_features(mechanism: Mechanism) -> dict[str, str]:
@@ -166,6 +166,10 @@ class EngineAdapter(ABC):
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
     #: The FEATURES this adapter builds (none yet for the engines).
     features: ClassVar[frozenset[str]] = frozenset()
+    #: The joint kinds of a spatial scene this adapter builds
+    #: (`mechval.reference.spatial.system.JOINT_KINDS`; with "spatial" in
+    #: `features`): a scene with another kind is refused before it runs.
+    spatial_joints: ClassVar[frozenset[str]] = frozenset()
     #: Why the engine itself cannot run a feature the adapter leaves out
     #: (feature → reason, measured): the refusal then says so rather than
     #: that the adapter does not build it yet.

@@ -33,7 +33,7 @@ the reference report: "crank.theta", "A.Fx", "drive.T", ...
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Literal, Mapping
+from typing import Any, Callable, Literal, Mapping
 
 import numpy as np
 import pandas as pd
@@ -205,6 +205,11 @@ class Mechanism:
     #: Where a torque-driven or free run starts: one joint value per degree
     #: of freedom the drives leave.
     initial_values: tuple[InitialValue, ...] = ()
+    #: A spatial scene (`mechval.reference.spatial.system.SpatialSystem`),
+    #: or None for a planar one. A spatial mechanism has kind "spatial", no
+    #: planar bodies or joints, and its `motion` is the spatial reference's.
+    spatial: Any = field(default=None, repr=False, compare=False)
+
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
 
@@ -221,6 +226,8 @@ class Mechanism:
         degrees of freedom or stated initial values): it is then integrated
         from the consistent initial state at the first instant
         (`mechval.reference.dynamics`), and an engine starts there with no pre-roll."""
+        if self.spatial is not None:
+            return self.spatial.forward_dynamics
         return self.drive is None or bool(self.torque_drives) or bool(self.initial_values)
 
     @property

@@ -31,7 +31,7 @@ on body_j, the opposite on body_i, as in the planar model.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal, Protocol
+from typing import Literal, Mapping, Protocol
 
 import numpy as np
 
@@ -134,9 +134,20 @@ class SpatialSystem:
     springs: tuple[Spring, ...] = ()
     loads: tuple[BodyLoad, ...] = ()
     torques: tuple[JointTorque, ...] = ()
+    #: Where a torque-driven or free run starts, per body name: (velocity of
+    #: the frame origin, angular velocity), world axes; bodies not named
+    #: start at rest. The reference projects them onto the constraints.
+    velocities: Mapping[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = \
+        field(default_factory=dict)
 
     def __post_init__(self) -> None:
         check(self)
+
+    @property
+    def forward_dynamics(self) -> bool:
+        """True when the motion is integrated (`mechval.reference.spatial.
+        dynamics`): no drives, torque laws, or a stated initial state."""
+        return not self.drives or bool(self.torques) or bool(self.velocities)
 
     def body(self, name: str) -> SpatialBody:
         return next(b for b in self.bodies if b.name == name)

@@ -1,0 +1,50 @@
+"""The `Mechanism` of a spatial scene: what the harness and every adapter
+see. Its kind is "spatial"; it has no planar bodies or joints; `spatial`
+holds the `SpatialSystem`, `motion` the spatial reference's motion columns
+(solved, or integrated from the scene's initial state at the first instant
+asked), and its signals are the raw columns under their own names
+(docs/conventions.md, "Spatial signals")."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from mechval.model.mechanism import Mechanism
+from mechval.reference.spatial.dynamics import SpatialDynamics
+from mechval.reference.spatial.solver import SpatialSolution, solve_spatial
+from mechval.reference.spatial.system import SpatialSystem
+
+KIND = "spatial"
+
+
+def spatial_solution(system: SpatialSystem, t: np.ndarray) -> SpatialSolution:
+    """The reference at instants t: solved positions, rates and reactions
+    of a prescribed scene; a torque-driven or free one integrated from its
+    initial state at t[0]."""
+    t = np.asarray(t, dtype=float)
+    if system.forward_dynamics:
+        return SpatialDynamics(system, system.velocities, t0=float(t[0])).solve(t)
+    return solve_spatial(system, t)
+
+
+class _Motion:
+    """The reference's motion columns at instants t (each call solves)."""
+
+    def __init__(self, system: SpatialSystem):
+        self.system = system
+
+    def __call__(self, t: np.ndarray) -> pd.DataFrame:
+        frame = spatial_solution(self.system, t).frame
+        return frame[["t", *self.system.motion_columns()]].reset_index(drop=True)
+
+
+def spatial_signal_map(system: SpatialSystem) -> dict[str, str]:
+    """Canonical signal → raw column: the same names (motion, then
+    reactions, drive efforts and torque laws)."""
+    return {name: name for name in system.motion_columns() + system.reaction_columns()}
+
+
+def spatial_mechanism(system: SpatialSystem, name: str | None = None) -> Mechanism:
+    return Mechanism(name=name or system.name, kind=KIND, bodies=(), joints=(), drive=None, gravity=(0.0, 0.0),
+                     motion=_Motion(system), signal_map=spatial_signal_map(system), spatial=system)

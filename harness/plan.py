@@ -81,6 +81,11 @@ class Plan:
                 why = engine_adapter.feature_limits.get(feature)
                 raise ScenarioError(self.scenario.source, key, f"{engine_adapter.name}: " + (
                     f"cannot run {feature}: {why}" if why else f"its adapter does not build {feature} yet"))
+        for joint in self.mechanism.spatial.joints if self.mechanism.spatial is not None else ():
+            if joint.kind not in engine_adapter.spatial_joints:
+                raise ScenarioError(self.scenario.source, self.scenario.key(f"joint.{joint.name}.kind"),
+                                    f"{engine_adapter.name}: its adapter does not build {joint.kind} joints "
+                                    f"(it builds: {', '.join(sorted(engine_adapter.spatial_joints)) or 'none'})")
 
 
 def prepare(scenario: Scenario, engines: Iterable[EngineAdapter | str] = ()) -> Plan:

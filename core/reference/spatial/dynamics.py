@@ -36,7 +36,8 @@ METHOD = "DOP853 on (G, quaternion, Ġ, ω), constraints at the acceleration lev
 
 
 def energy(system: SpatialSystem, pose: Pose, w: np.ndarray) -> np.ndarray:
-    """Kinetic plus gravitational plus spring potential energy (J), per instant."""
+    """Kinetic plus gravitational energy (J), per instant (springs' energy is
+    the caller's: `Spring` has its length and stiffness)."""
     J = world_inertia(system, pose)
     g = np.asarray(system.gravity, dtype=float)
     total = np.zeros(len(pose))

@@ -73,6 +73,15 @@ class Plan:
         """The values of `resolved`."""
         return dict(self.resolved(engine, overrides).values)
 
+    def refusal(self, engine_adapter: EngineAdapter | str) -> str:
+        """Why the adapter declares it cannot build this scene (key and
+        reason of `refuse_unbuilt_features`), or ""."""
+        try:
+            self.refuse_unbuilt_features(adapter(engine_adapter) if isinstance(engine_adapter, str) else engine_adapter)
+        except ScenarioError as exc:
+            return f"{exc.key}: {exc.reason}"
+        return ""
+
     def refuse_unbuilt_features(self, engine_adapter: EngineAdapter) -> None:
         """A ScenarioError naming the file and key of the first feature of
         the scene the adapter does not build (`mechanism_features`)."""

@@ -85,3 +85,32 @@ def test_a_joint_kind_the_adapter_does_not_build_is_refused_naming_the_joint():
     assert refused.value.key == "joint.pivot.kind" and "spherical" in refused.value.reason
     assert np.isfinite(simulate(ss.scenario("rotor", ss.SpinningRotor().system(), 0.1, 11), RevoluteOnly())
                        ["bearing.Mx"]).all()
+
+
+
+def test_a_scene_an_engine_declares_it_cannot_build_is_a_row_that_says_so_not_a_failed_run():
+    """`mechval run`'s path for a declared refusal (`Plan.refusal`,
+    `Task.refused`): the task is never run, its one record is "missing"
+    with the reason, the run passes, and the page's cell says "not built"."""
+    from mechval.harness.plan import prepare
+    from mechval.harness.runner import outcome_records, run_alongside
+    from mechval.judging.compare import passed
+    from mechval.records.outcome import Task
+    from mechval.reports.build import _cell
+
+    scenario = ss.scenario("hanging", ss.hanging(), 0.1, 11)
+    refusal = prepare(scenario).refusal(Planar())
+    assert refusal.startswith("mechanism: planar-only: its adapter does not build spatial")
+    assert prepare(scenario).refusal(ReferenceAdapter()) == ""
+
+    class NeverRuns:
+        def run(self, call, items, done):
+            assert not items, "a refused task was run"
+            return []
+
+    seen = []
+    outcomes, _ = run_alongside([Task(scenario, "planar-only", refused=refusal)], (), NeverRuns(), seen.append)
+    assert [o.error for o in outcomes] == [refusal] and [o.error for o in seen] == [refusal]
+    records = outcome_records(outcomes[0], None)
+    assert list(records["verdict"]) == ["missing"] and refusal in records["reason"].iloc[0]
+    assert passed(records) and _cell(records)["text"] == "not built"

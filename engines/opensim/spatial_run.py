@@ -34,6 +34,7 @@ import pandas as pd
 
 from mechval.model.kinematics import dense_grid
 from mechval.model.mechanism import GROUND
+from mechval.reference.spatial.dynamics import SpatialDynamics
 from mechval.reference.spatial.mechanism import spatial_solution
 from mechval.reference.spatial.rotation import matrix_to_quaternion, quaternion_to_matrix
 from mechval.reference.spatial.system import SpatialSystem
@@ -41,7 +42,7 @@ from mechval.reference.spatial.system import SpatialSystem
 from mechval.engines.base import RawRun, RunInfo
 from mechval.engines.opensim.model import quiet
 from mechval.engines.opensim.run import INTEGRATORS, MIN_STEP_FRACTION, step_limit
-from mechval.engines.opensim.spatial_model import CHARTED, SpatialModel, build_spatial_model, euler_xyz
+from mechval.engines.opensim.spatial_model import CHARTED, SpatialModel, build_spatial_model, cut_joints, euler_xyz
 
 #: Re-anchor a Ball or Free joint's Euler chart past this second angle (rad):
 #: the kinematic map q̇ = N(q)·u grows as 1/cos of it (singular at π/2).
@@ -51,10 +52,14 @@ World = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]   # bod
 
 
 def peak_rate(system: SpatialSystem, times: np.ndarray) -> float:
-    """Ω of the step rule from the reference motion on the dense grid:
-    the largest |ω|, √|α| and ∛|jerk| over the bodies."""
+    """Ω of the step rule from the reference motion on the dense grid."""
     t = dense_grid(times)
-    frame = spatial_solution(system, t).frame
+    return rate_of(system, spatial_solution(system, t).frame, t)
+
+
+def rate_of(system: SpatialSystem, frame: pd.DataFrame, t: np.ndarray) -> float:
+    """Ω of a motion at instants t: the largest |ω|, √|α| and ∛|jerk| over
+    the bodies."""
     rate = 0.0
     for body in system.bodies:
         w = frame[[f"{body.name}.w{c}" for c in "xyz"]].to_numpy()
@@ -65,14 +70,22 @@ def peak_rate(system: SpatialSystem, times: np.ndarray) -> float:
     return rate
 
 
-def start_frame(system: SpatialSystem, times: np.ndarray) -> pd.DataFrame:
-    """The reference's raw columns at times[0] (the only read of the
-    reference); a forward-dynamics one over the first interval, since its
-    integrator needs an interval."""
+def start_world(system: SpatialSystem, times: np.ndarray) -> World:
+    """The reference's state at times[0] (the only read of the reference):
+    a prescribed scene solved there, a forward-dynamics one's consistent
+    initial state (`SpatialDynamics`: centres of mass and their velocities,
+    moved here to the body origins)."""
     if not system.forward_dynamics:
-        return spatial_solution(system, times[:1]).frame
-    span = times[:2] if len(times) > 1 else np.array([times[0], times[0] + 1e-6])
-    return spatial_solution(system, span).frame.iloc[:1]
+        return world_from_frame(system, spatial_solution(system, times[:1]).frame)
+    dynamics = SpatialDynamics(system, system.velocities, t0=float(times[0]))
+    pose, w = dynamics.pose0, dynamics.w0[0]
+    out = {}
+    for k, body in enumerate(system.bodies):
+        R = pose.A[0, k]
+        arm = R @ np.asarray(body.com, dtype=float)
+        omega = w[k, 3:]
+        out[body.name] = (R, pose.G[0, k] - arm, w[k, :3] - np.cross(omega, arm), omega)
+    return out
 
 
 def world_from_frame(system: SpatialSystem, frame: pd.DataFrame, row: int = 0) -> World:
@@ -177,9 +190,9 @@ def needs_rechart(built: SpatialModel, state: osim.State) -> bool:
 def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
     """The raw frame at `times` from the reference's state at times[0]."""
     times = np.asarray(times, dtype=float)
+    cut_joints(system)          # what the adapter cannot build is refused before the reference is read
     clock = time.perf_counter()
-    start = start_frame(system, times)
-    built, manager = prepare(system, world_from_frame(system, start), float(times[0]), settings, times)
+    built, manager = prepare(system, start_world(system, times), float(times[0]), settings, times)
     build_time = time.perf_counter() - clock
     clock = time.perf_counter()
     rows, recharts = [], 0

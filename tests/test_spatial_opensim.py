@@ -175,8 +175,11 @@ def test_stiff_flyball_governor_meets_the_reference():
 
 
 def test_cylindrical_and_planar_joints_meet_the_reference():
+    """test_spatial_joint_kinds' sliding bodies, the cylinder's slide damped."""
     for kind, axis, v, w in (("cylindrical", (1.0, 1.0, 1.0), 0.4, 7.0), ("planar", (0.2, -0.3, 1.0), 0.5, -5.0)):
         system, u = sliding_body(kind, axis)
+        if kind == "cylindrical":
+            system = dataclasses.replace(system, joints=(dataclasses.replace(system.joints[0], damping=2.0),))
         velocity = v * (u if kind == "cylindrical" else unit(np.cross(u, [1.0, 0.0, 0.0])))
         check(dataclasses.replace(system, velocities={"body": (tuple(velocity), tuple(w * u))}),
               np.linspace(0.0, 1.0, 51))
@@ -193,6 +196,22 @@ def test_fixed_and_universal_joints_meet_the_reference():
                          SpatialJoint("W", "fixed", "crank", "plate", (0.25, 0.0, 0.0), (0.25, 0.0, 0.0))),
                         (SpatialDrive("O", DriveLaw(0.2, 3.0, 1.5)),), GRAVITY), np.linspace(0.0, 2.0, 41))
     check(hooke(), np.linspace(0.0, 3.0, 61))
+
+
+def test_a_weld_that_closes_a_loop_meets_the_reference():
+    """The plate welded to the driven crank and held on the crank's axis
+    by a cylindrical joint to the ground: the weld closes the loop (a
+    WeldConstraint, four redundant rows), compared by body resultants."""
+    axis = unit((0.3, 0.1, 1.0))
+    frame = frame_from_axis(axis)
+    crank = SpatialBody("crank", 2.0, (0.1, 0.0, 0.05), inertia(50))
+    plate = SpatialBody("plate", 1.0, (0.3, 0.1, -0.1), inertia(51))
+    on_axis = tuple(0.4 * axis)
+    check(SpatialSystem("welded loop", (crank, plate),
+                        (revolute("O", GROUND, "crank", (0.0, 0.0, 0.0), axis),
+                         SpatialJoint("W", "fixed", "crank", "plate", (0.25, 0.0, 0.0), (0.25, 0.0, 0.0)),
+                         SpatialJoint("C", "cylindrical", GROUND, "plate", on_axis, on_axis, frame, frame)),
+                        (SpatialDrive("O", DriveLaw(0.2, 3.0, 1.5)),), GRAVITY), np.linspace(0.0, 2.0, 41))
 
 
 def hooke() -> SpatialSystem:

@@ -50,6 +50,10 @@ Y_FROM_Z = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 #: Closures as constraints, in order of preference for the cut; the
 #: other kinds must be tree joints.
 CLOSABLE = ("spherical", "revolute", "universal", "fixed")
+#: A joint damper's coordinate per kind (the reference's damper: about zi
+#: at a revolute joint, along zi elsewhere, where only a cylindrical joint
+#: has a slide along zi left to damp).
+DAMPED = {"revolute": 0, "prismatic": 0, "cylindrical": 1}
 #: Kinds whose chart (Euler angles) the run re-anchors.
 CHARTED = ("spherical", "free")
 
@@ -114,7 +118,7 @@ def cut_joints(system: SpatialSystem) -> tuple[list[SpatialJoint], list[SpatialJ
     need of a mobilizer: driven first, then the kinds no constraint closes,
     then CLOSABLE backwards (a spherical joint is cut first)."""
     driven = {d.joint for d in system.drives} | {t.joint for t in system.torques}
-    damped = {j.name for j in system.joints if j.damping}
+    damped = {j.name for j in system.joints if j.damping and j.kind in DAMPED}
 
     def rank(j: SpatialJoint) -> int:
         if j.name in driven or j.name in damped or j.kind not in CLOSABLE:
@@ -210,7 +214,7 @@ def build_spatial_model(system: SpatialSystem, start: dict, length: float) -> Sp
         built.closures[joint.name] = _add_closure(built, joint, f"c{k}", length)
     for drive in system.drives:
         _prescribe(built, drive)
-    for k, joint in enumerate(j for j in system.joints if j.damping):
+    for k, joint in enumerate(j for j in system.joints if j.damping and j.kind in DAMPED):
         _add_damper(built, joint, f"d{k}")
     for k, torque in enumerate(system.torques):
         _add_torque(built, torque, f"a{k}")
@@ -309,10 +313,11 @@ def _prescribe(built: SpatialModel, drive) -> None:
 
 
 def _add_damper(built: SpatialModel, joint: SpatialJoint, name: str) -> None:
-    """−c·q̇ on the joint's coordinate (the sign of a reversed one drops
-    out); revolute and prismatic joints only (the scene's rule)."""
+    """−c·q̇ on the joint's coordinate `DAMPED` (the sign of a reversed
+    one drops out). On the other kinds the reference's damper, along zi,
+    meets no slide and does nothing: none is built."""
     mob = built.mobilizers[built.tree[joint.name]]
-    damper = osim.SpringGeneralizedForce(built.coordinates(mob.name)[0].getName())
+    damper = osim.SpringGeneralizedForce(built.coordinates(mob.name)[DAMPED[joint.kind]].getName())
     damper.setStiffness(0.0)
     damper.setViscosity(joint.damping)
     damper.setName(name)

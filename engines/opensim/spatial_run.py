@@ -42,7 +42,7 @@ from mechval.reference.spatial.system import SpatialSystem
 from mechval.engines.base import RawRun, RunInfo
 from mechval.engines.opensim.model import quiet
 from mechval.engines.opensim.run import INTEGRATORS, MIN_STEP_FRACTION, step_limit
-from mechval.engines.opensim.spatial_model import CHARTED, SpatialModel, build_spatial_model, cut_joints, euler_xyz
+from mechval.engines.opensim.spatial_model import CHARTED, DAMPED, SpatialModel, build_spatial_model, cut_joints, euler_xyz
 
 #: Re-anchor a Ball or Free joint's Euler chart past this second angle (rad):
 #: the kinematic map q̇ = N(q)·u grows as 1/cos of it (singular at π/2).
@@ -273,11 +273,13 @@ def _tree_load(built: SpatialModel, state: osim.State, name: str, Pi: np.ndarray
     moment, force = _vec(reaction.get(0)), _vec(reaction.get(1))
     applied = _mobility_force(built, state, name)
     if applied:
-        parent_axes = built.joints[name].getParentFrame().getTransformInGround(state).R()
+        axes = _mat(built.joints[name].getParentFrame().getTransformInGround(state).R())
         if mob.kind == "revolute":
-            moment = moment - applied * _mat(parent_axes)[:, 2]
-        else:                    # prismatic: along the slider's x
-            force = force - applied * _mat(parent_axes)[:, 0]
+            moment = moment - applied * axes[:, 2]
+        elif mob.kind == "prismatic":        # along the slider's x
+            force = force - applied * axes[:, 0]
+        else:                                # cylindrical: along z
+            force = force - applied * axes[:, 2]
     if mob.reversed:
         return -force, -moment - np.cross(Pi - Pj, force)
     return force, moment
@@ -285,15 +287,13 @@ def _tree_load(built: SpatialModel, state: osim.State, name: str, Pi: np.ndarray
 
 def _mobility_force(built: SpatialModel, state: osim.State, name: str) -> float:
     """The generalised force the joint's damper and torque law apply on its
-    first coordinate: −c·q̇ and the actuation."""
+    damped or driven coordinate: −c·q̇ and the actuation."""
     mob = built.mobilizers[name]
-    if mob.joint is None:
+    if mob.joint is None or mob.kind not in DAMPED:
         return 0.0
+    coordinate = built.coordinates(name)[DAMPED[mob.kind]]
     total = 0.0
     damper = built.dampers.get(mob.joint.name)
-    coordinate = built.coordinates(name)[0] if mob.kind in ("revolute", "prismatic") else None
-    if coordinate is None:
-        return 0.0
     if damper is not None:
         total -= damper.getViscosity() * coordinate.getSpeedValue(state)
     for actuator in built.actuators.values():

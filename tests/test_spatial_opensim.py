@@ -311,3 +311,49 @@ def test_simbody_keeps_the_gyroscopic_term_in_full():
     # reference's own, read the same way, is 3e-12 s off the closed form
     assert abs(flip - scene.quarter) <= 1e-6, f"flip at {flip:.9f} s, closed form {scene.quarter:.9f} s"
     assert np.abs(energy / scene.energy - 1).max() <= 1e-8
+
+
+@pytest.mark.parametrize("build", [lambda: Delta().system, driven_slide, torque_crank, hooke,
+                                   lambda: sliding_body("cylindrical", (1.0, 1.0, 1.0))[0],
+                                   lambda: sliding_body("planar", (0.2, -0.3, 1.0))[0]],
+                         ids=["delta", "driven-slide", "torque-crank", "hooke", "cylindrical", "planar"])
+def test_the_built_model_holds_the_scenes_inertia_points_and_axes(build):
+    """Read back from OpenSim at the start state: each body's mass, mass
+    centre and inertia tensor; each tree joint's frames in the ground
+    (`getTransformInGround` of its parent and child frames): origins at
+    Pi and Pj, the axis OpenSim turns or slides about along zi and zj."""
+    from mechval.engines.opensim.spatial_run import prepare, start_world
+    system = build()
+    t = np.linspace(0.0, 1.0, 3)
+    world = start_world(system, t)
+    built, manager = prepare(system, world, 0.0, {"integrator": "RungeKuttaMerson", "accuracy": 1e-9,
+                                                  "constraint_tolerance": 1e-10, "max_step": 0.1}, t)
+    state = manager.getState()
+    built.model.realizePosition(state)
+    for body in system.bodies:
+        b = built.bodies[body.name]
+        I = b.getInertia()
+        moments, products = I.getMoments(), I.getProducts()
+        tensor = np.array([[moments[0], products[0], products[1]], [products[0], moments[1], products[2]],
+                           [products[1], products[2], moments[2]]])
+        assert b.getMass() == body.mass
+        assert np.allclose([b.getMassCenter()[k] for k in range(3)], body.com, rtol=0, atol=1e-15)
+        assert np.allclose(tensor, body.inertia, rtol=1e-14, atol=0)
+    # which OpenSim axis each kind turns or slides about, in (parent, child)
+    axis_of = {"revolute": (2, 2), "prismatic": (0, 0), "cylindrical": (2, 2), "planar": (2, 2),
+               "universal": (0, 1)}
+    for joint in system.joints:
+        if joint.name not in built.tree:
+            continue
+        name = built.tree[joint.name]
+        mob, osim_joint = built.mobilizers[name], built.joints[name]
+        ends = {joint.body_i: (joint.point_i, joint.frame_i), joint.body_j: (joint.point_j, joint.frame_j)}
+        for frame, body, column in ((osim_joint.getParentFrame(), mob.parent, axis_of.get(joint.kind, (None,))[0]),
+                                    (osim_joint.getChildFrame(), mob.child, axis_of.get(joint.kind, (None, None))[1])):
+            X = frame.getTransformInGround(state)
+            R = np.array([[X.R().get(i, k) for k in range(3)] for i in range(3)])
+            point, scene_frame = ends[body]
+            A, origin = (np.eye(3), np.zeros(3)) if body == GROUND else world[body][:2]
+            assert np.allclose([X.p()[k] for k in range(3)], A @ np.asarray(point) + origin, rtol=0, atol=1e-12)
+            if column is not None:
+                assert np.allclose(R[:, column], A @ np.asarray(scene_frame)[:, 2], rtol=0, atol=1e-12)

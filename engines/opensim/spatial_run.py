@@ -50,7 +50,7 @@ from mechval.engines.opensim.spatial_model import CHARTED, DAMPED, SpatialModel,
 #: a body spun about a principal axis with a 1e-5 wobble passes 0.012 rad
 #: from the singularity, and without re-anchoring its quaternions are 7.5e-11
 #: off the reference (7.5e-12 with it), accelerations 5.4e-6 of their peak
-#: (7.3e-7); an exact pass divides by zero.
+#: (7.3e-7).
 RECHART_ANGLE = 1.0
 
 World = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]   # body → R, origin, v, ω

@@ -357,3 +357,17 @@ def test_the_built_model_holds_the_scenes_inertia_points_and_axes(build):
             assert np.allclose([X.p()[k] for k in range(3)], A @ np.asarray(point) + origin, rtol=0, atol=1e-12)
             if column is not None:
                 assert np.allclose(R[:, column], A @ np.asarray(scene_frame)[:, 2], rtol=0, atol=1e-12)
+
+
+def test_a_spatial_run_writes_no_files_and_prints_nothing(tmp_path, monkeypatch, capfd):
+    """The planar run's guard holds for the spatial one too (a run that
+    re-anchors its chart builds and initialises models mid-run)."""
+    monkeypatch.chdir(tmp_path)
+    scene = TumblingBody()
+    raw = run_spatial(with_start(scene), np.linspace(0.0, 2 * scene.quarter, 21),
+                      {"integrator": "RungeKuttaMerson", "accuracy": 1e-9, "constraint_tolerance": 1e-10,
+                       "max_step": 0.05})
+    assert raw.info.facts["recharts"] >= 1
+    assert list(tmp_path.iterdir()) == []
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""

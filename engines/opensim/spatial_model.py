@@ -158,12 +158,10 @@ def spanning_tree(system: SpatialSystem, start: dict) -> list[Mobilizer]:
     placed, out = {GROUND}, []
     edges = list(tree)
     bodies = [b.name for b in system.bodies]
-    while edges or len(placed) <= len(bodies):
+    while len(placed) <= len(bodies):           # placed holds the ground too
         joint = next((j for j in edges if j.body_i in placed or j.body_j in placed), None)
-        if joint is None:
-            free = next((b for b in bodies if b not in placed), None)
-            if free is None:
-                break
+        if joint is None:                       # a part with no path to the ground: free root
+            free = next(b for b in bodies if b not in placed)
             R = start[free][0]
             out.append(Mobilizer(f"j{len(out)}", "free", None, GROUND, free, False, np.zeros(3), R, np.zeros(3),
                                  np.eye(3)))

@@ -371,3 +371,17 @@ def test_a_spatial_run_writes_no_files_and_prints_nothing(tmp_path, monkeypatch,
     assert list(tmp_path.iterdir()) == []
     out, err = capfd.readouterr()
     assert out == "" and err == ""
+
+
+def test_default_step_without_the_harnesss_peak_rates():
+    """Ω from the reference on the dense grid when no peak rates are given:
+    at least the rate of Hooke's output where the input angle θ1 = 2t +
+    0.35t² passes π/2, ω1/cos β (from tan θ2 = cos β·tan θ1: ω2 = ω1·cos β /
+    (cos²θ1 + cos²β·sin²θ1))."""
+    t = np.linspace(0.0, 1.0, 11)
+    settings = OpensimAdapter().default_settings(spatial_mechanism(hooke()), t)
+    quarter = (-2.0 + np.sqrt(4.0 + 1.4 * np.pi / 2)) / 0.7        # θ1 = π/2
+    peak = (2.0 + 0.7 * quarter) / np.cos(np.radians(35.0))
+    assert settings["max_step"] <= 0.05 / peak
+    steps = 0.1 / settings["max_step"]
+    assert abs(steps - round(steps)) < 1e-9        # a whole number of steps per sample interval

@@ -385,3 +385,23 @@ def test_default_step_without_the_harnesss_peak_rates():
     assert settings["max_step"] <= 0.05 / peak
     steps = 0.1 / settings["max_step"]
     assert abs(steps - round(steps)) < 1e-9        # a whole number of steps per sample interval
+
+
+def reversed_joint(joint: SpatialJoint) -> SpatialJoint:
+    """The same joint written from body_j to body_i."""
+    return dataclasses.replace(joint, body_i=joint.body_j, body_j=joint.body_i, point_i=joint.point_j,
+                               point_j=joint.point_i, frame_i=joint.frame_j, frame_j=joint.frame_i)
+
+
+def test_reversed_slide_and_universal_joints_meet_the_reference():
+    """A tree joint whose parent is its body_j: the driven slide written
+    from the carriage to the ground (its slide, so its law, negated), and
+    Hooke's cross written from the output to the input (R2 then closes
+    the loop)."""
+    slide = driven_slide()
+    check(dataclasses.replace(slide, joints=(reversed_joint(slide.joints[0]), slide.joints[1]),
+                              drives=(dataclasses.replace(slide.drives[0], law=DriveLaw(0.0, -0.3, 0.8)),)),
+          np.linspace(0.0, 1.0, 51))
+    shafts = hooke()
+    check(dataclasses.replace(shafts, joints=(shafts.joints[0], reversed_joint(shafts.joints[1]), shafts.joints[2])),
+          np.linspace(0.0, 3.0, 61))

@@ -1,6 +1,7 @@
 """OpenSim adapter: the planar mechanism as an OpenSim 4.6 model, solved by
 Simbody's error-controlled integrators with exact constraint projection
-(model building in `model`, the run and its read-out in `run`).
+(model building in `model`, the run and its read-out in `run`; a spatial
+scene, `mechanism.spatial`, in `spatial_model` and `spatial_run`).
 
 Conversion of OpenSim's native outputs to the mechval convention:
 - Body motion: each OpenSim body's frame is the mechanism body's frame

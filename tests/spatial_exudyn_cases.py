@@ -100,7 +100,8 @@ def welded_crank() -> SpatialSystem:
 def torque_pendulum() -> SpatialSystem:
     """A double pendulum on tilted pins under gravity: a torque law at its
     top pin, a spring from the ground to the lower link, a constant body
-    load (force and torque) on the lower link; free otherwise."""
+    load (force and torque) on the lower link, a damper in the knee; free
+    otherwise."""
     top, knee = unit((0.2, 1.0, 0.1)), unit((0.0, 1.0, 0.3))
     law = TorqueLaw("A", torque=0.3, amplitude=0.8, frequency=0.7, phase=0.4, name="motor")
     return SpatialSystem(
@@ -108,7 +109,7 @@ def torque_pendulum() -> SpatialSystem:
         (SpatialBody("upper", 1.0, (0.15, 0.0, -0.05), inertia(70, 1e-2)),
          SpatialBody("lower", 0.7, (0.35, 0.02, -0.1), inertia(71, 1e-2))),
         (revolute("A", GROUND, "upper", (0.0, 0.0, 0.0), top, (1.0, 0.0, 0.0)),
-         revolute("B", "upper", "lower", (0.3, 0.0, -0.05), knee, (1.0, 0.0, 0.0))),
+         dataclasses.replace(revolute("B", "upper", "lower", (0.3, 0.0, -0.05), knee, (1.0, 0.0, 0.0)), damping=0.05)),
         gravity=GRAVITY,
         springs=(Spring("spring", GROUND, (0.3, 0.2, 0.3), "lower", (0.45, 0.0, -0.1), 40.0, 0.3, 0.5),),
         loads=(BodyLoad("push", "lower", (0.5, -0.3, 0.2), (0.05, 0.02, -0.03)),),
@@ -143,5 +144,5 @@ CASES = {
     "planar": lambda: (sliding("planar", (0.2, -0.3, 1.0), 0.5, -5.0), np.linspace(0.0, 1.0, 21)),
     "prismatic": lambda: (sliding("prismatic", (0.3, -1.0, 0.5), 0.4, 0.0), np.linspace(0.0, 1.0, 21)),
     "fixed": lambda: (welded_crank(), np.linspace(0.0, 1.0, 21)),
-    "torque law, spring, load": lambda: (torque_pendulum(), np.linspace(0.0, 1.0, 21)),
+    "torque law, spring, load, damper": lambda: (torque_pendulum(), np.linspace(0.0, 1.0, 21)),
 }

@@ -164,7 +164,7 @@ class ExudynAdapter(EngineAdapter):
         """
         if mechanism.spatial is not None:      # Ω from the spatial reference unless the harness gives it
             from mechval.engines.exudyn.spatial import spatial_settings
-            return spatial_settings(mechanism, times, rates.rate if rates is not None else None, RAD_PER_STEP)
+            return spatial_settings(mechanism, times, rates, RAD_PER_STEP)
         rates = peak_rates(mechanism, times) if rates is None else rates
         if mechanism.forward_dynamics:
             scale = force_scale(mechanism, rates.motion, rates.t)

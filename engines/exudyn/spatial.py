@@ -214,16 +214,13 @@ SPATIAL_NEWTON_PER_NEWTON = 1e-11
 RATE_GRID = 2001
 
 
-def reference_rates(system: SpatialSystem, times: np.ndarray) -> tuple[float, float]:
-    """Ω (max over bodies and instants of |ω|, √|α|, ∛|jerk|; rad/s) and
-    the force scale Σ m·|a_G − g|·max(1, r) (N; r the largest distance from
-    a body's centre of mass to its joint points) of the reference motion
-    on a dense grid of the run."""
-    from mechval.model.kinematics import dense_grid
+def reference_rates(system: SpatialSystem, t: np.ndarray, frame: pd.DataFrame) -> tuple[float, float]:
+    """Ω (max over bodies and instants of |ω|, √|α|, ∛|jerk|, and
+    `spring_rate`; rad/s) and the force scale Σ m·|a_G − g|·max(1, r) (N; r
+    the largest distance from a body's centre of mass to its joint points)
+    of the reference motion `frame` at the instants t."""
     from mechval.reference.spatial.columns import body_state
 
-    t = dense_grid(times, RATE_GRID)
-    frame = spatial_solution(system, t).frame
     _, _, dw = body_state(system, frame)
     rate = 0.0
     for b in system.bodies:
@@ -239,6 +236,17 @@ def reference_rates(system: SpatialSystem, times: np.ndarray) -> tuple[float, fl
                    for body, p in ((j.body_i, j.point_i), (j.body_j, j.point_j)) if body == b.name), default=0.0)
         total += b.mass * np.linalg.norm(dw[:, k, :3] - g, axis=1) * max(1.0, arm)
     return max(float(rate), spring_rate(system)), float(total.max())
+
+
+def planned_rates(system: SpatialSystem, times: np.ndarray):
+    """The reference motion on the step rule's dense grid and its Ω, as
+    the harness's `PeakRates` (one solve, shared by Ω and the force scale)."""
+    from mechval.adapter import PeakRates
+    from mechval.model.kinematics import dense_grid
+
+    t = dense_grid(times, RATE_GRID)
+    frame = spatial_solution(system, t).frame
+    return PeakRates(t, frame, reference_rates(system, t, frame)[0])
 
 
 def spring_rate(system: SpatialSystem) -> float:
@@ -263,10 +271,11 @@ def redundant_constraints(system: SpatialSystem, times: np.ndarray) -> int:
     return int(model.mbs.ComputeSystemDegreeOfFreedom()["redundantConstraints"])
 
 
-def spatial_settings(mechanism, times: np.ndarray, rate: float | None, rad_per_step: float) -> dict[str, Any]:
+def spatial_settings(mechanism, times: np.ndarray, rates, rad_per_step: float) -> dict[str, Any]:
     """The adapter's settings for a spatial scene (docs/engines.md, Exudyn,
     "Spatial scenes"): the planar step rule with Ω of the reference motion
-    (`rate`, or computed here when None or 0); the index-3 solver where
+    (`rates`: the reference motion on a dense grid of the run and its Ω;
+    solved here when None or not spatial); the index-3 solver where
     Exudyn finds redundant constraints (index-2's velocity-level
     constraints drift apart there and its least-squares residual grows
     until Newton fails: measured on the spherical four-bar, from 1e-11 to
@@ -275,8 +284,10 @@ def spatial_settings(mechanism, times: np.ndarray, rate: float | None, rad_per_s
     from mechval.engines.base import default_step
 
     system = mechanism.spatial
-    own_rate, scale = reference_rates(system, times)
-    dt = default_step(mechanism, times, rad_per_step=rad_per_step, rate=max(rate or own_rate, spring_rate(system)))
+    if rates is None or f"{system.bodies[0].name}.wx" not in rates.motion:
+        rates = planned_rates(system, times)
+    rate, scale = reference_rates(system, np.asarray(rates.t, dtype=float), pd.DataFrame(rates.motion))
+    dt = default_step(mechanism, times, rad_per_step=rad_per_step, rate=max(rate, float(rates.rate or 0.0)))
     redundant = redundant_constraints(system, times)
     solver = "index3" if redundant else "index2"
     fd = system.forward_dynamics

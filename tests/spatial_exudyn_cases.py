@@ -135,7 +135,7 @@ CASES = {
     "Bricard (A04)": lambda: (Bricard().system, np.linspace(0.0, 1.0, 21)),
     # A05 is stiff: the reference's explicit integrator covers milliseconds
     # (tests/test_spatial_benchmarks.py, FLYBALL_SPAN); undamped it is not.
-    "flyball (A05)": lambda: (with_velocities(FlyballGovernor()), np.linspace(0.0, 0.005, 11)),
+    "flyball (A05)": lambda: (with_velocities(FlyballGovernor()), np.linspace(0.0, 0.0025, 11)),
     "flyball undamped": lambda: (with_velocities(FlyballGovernor(damping=0.0)), np.linspace(0.0, 0.05, 26)),
     "T-handle": tumbling,
     "heavy top": heavy_top,

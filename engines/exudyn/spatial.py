@@ -21,6 +21,7 @@ Read-out:
 
 from __future__ import annotations
 
+import time
 from typing import Any, Mapping
 
 import exudyn as exu
@@ -37,11 +38,11 @@ from mechval.engines.exudyn.model import SOLVERS, simulation_settings, solve
 from mechval.engines.exudyn.run import index3_transient_steps, sample_rows
 from mechval.engines.exudyn.spatial_model import CONSTRAINED_AXES, SpatialModel, build_spatial
 
-#: Per number of constrained rotations and which are free: the rows
-#: (constraint index 3..5, J0 axis a0, J1 axis b1) of a0·b1 = 0
-#: (CObjectJointGeneric::ComputeAlgebraicEquations).
 def rotation_rows(axes: tuple[int, ...]) -> list[tuple[int, int, int]]:
-    rot = axes[3:]
+    """The rotation constraints a0·b1 = 0 of an `ObjectJointGeneric` with
+    `constrainedAxes` axes, as (multiplier 0..2 of TorqueLocal, J0 axis of
+    a0, J1 axis of b1) (CObjectJointGeneric::ComputeAlgebraicEquations)."""
+    rot = tuple(axes[3:])
     if sum(rot) == 3:
         return [(0, 2, 1), (1, 2, 0), (2, 0, 1)]
     if sum(rot) == 2:
@@ -72,8 +73,6 @@ def start_frame(system: SpatialSystem, t0: float, t1: float) -> pd.DataFrame:
 def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
     """Exudyn's run of `system` at the instants `times` (settings: the
     adapter's `settings_spec`)."""
-    import time
-
     times = np.asarray(times, dtype=float)
     if system.forward_dynamics != (int(settings["pre_roll_steps"]) == 0):
         raise ValueError("exudyn: pre_roll_steps must be 0 for a torque-driven or free scene and at least 1 "
@@ -97,6 +96,9 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     model = build_spatial(system, start, t0)
     dof = model.mbs.ComputeSystemDegreeOfFreedom()
     redundant = int(dof["redundantConstraints"])
+    if redundant and settings["solver"] == "index2":
+        raise ValueError(f"exudyn: solver 'index2' cannot run {redundant} redundant constraint(s): its velocity-level "
+                         f"constraints drift apart until Newton fails; use 'index3'")
     simulation = simulation_settings(settings, float(times[-1]) - t0, dt)
     if redundant:
         # Exudyn's way with redundant constraints (its bricardMechanism

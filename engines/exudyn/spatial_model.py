@@ -42,8 +42,9 @@ import exudyn.itemInterface as eii
 import numpy as np
 import pandas as pd
 
+from mechval.adapter import Unrepresentable
 from mechval.model.mechanism import GROUND
-from mechval.reference.spatial.rotation import quaternion_to_matrix
+from mechval.reference.spatial.rotation import quaternion_rate
 from mechval.reference.spatial.system import SpatialJoint, SpatialSystem
 
 #: Per joint kind: translations x, y, z and rotations x, y, z of the joint
@@ -101,12 +102,11 @@ def _row(start: pd.DataFrame, body: str, names: str) -> np.ndarray:
     return np.array([float(start[f"{body}.{n}"].iloc[0]) for n in names.split()])
 
 
-def build_spatial(system: SpatialSystem, start: pd.DataFrame, t0: float, start_values: dict | None = None
-                  ) -> SpatialModel:
+def build_spatial(system: SpatialSystem, start: pd.DataFrame, t0: float) -> SpatialModel:
     """The model in the state `start` (raw reference columns, one row at
-    t0); the solver's time 0 is t0 (Exudyn refuses negative times)."""
-    from mechval.reference.spatial.rotation import quaternion_rate
-
+    t0, accelerations included: Exudyn's own initial-acceleration solve
+    ignores φ'' of a drive); the solver's time 0 is t0 (Exudyn refuses
+    negative times)."""
     sc = exu.SystemContainer()
     mbs = sc.AddSystem()
     model = SpatialModel(sc, mbs)
@@ -145,7 +145,6 @@ def build_spatial(system: SpatialSystem, start: pd.DataFrame, t0: float, start_v
     for joint in system.joints:
         if joint.damping:
             if joint.kind not in ("revolute", "prismatic"):
-                from mechval.adapter import Unrepresentable
                 raise Unrepresentable(f"joint.{joint.name}.damping", "damping is on revolute or prismatic joints only")
             mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(
                 markerNumbers=[ground_coordinate, coordinate_marker(joint)], stiffness=0.0, damping=joint.damping))
@@ -162,11 +161,9 @@ def build_spatial(system: SpatialSystem, start: pd.DataFrame, t0: float, start_v
                    for b, p in ((spring.body_a, spring.point_a), (spring.body_b, spring.point_b))]
         mbs.AddObject(eii.ObjectConnectorSpringDamper(markerNumbers=markers, stiffness=spring.stiffness,
                                                       damping=spring.damping, referenceLength=spring.free_length))
-    for load in system.loads:
-        body = system.body(load.body) if load.body != GROUND else None
-        if body is None:
-            continue
-        com = mbs.AddMarker(eii.MarkerBodyRigid(bodyNumber=objects[load.body], localPosition=list(map(float, body.com))))
+    for load in (load for load in system.loads if load.body != GROUND):     # a load on the ground does nothing
+        com = mbs.AddMarker(eii.MarkerBodyRigid(bodyNumber=objects[load.body],
+                                                localPosition=list(map(float, system.body(load.body).com))))
         mbs.AddLoad(eii.LoadForceVector(markerNumber=com, loadVector=list(map(float, load.force))))
         mbs.AddLoad(eii.LoadTorqueVector(markerNumber=com, loadVector=list(map(float, load.torque))))
     for law in system.torques:
@@ -249,10 +246,3 @@ def _add_torque_law(mbs: exu.MainSystem, joint: SpatialJoint, law, objects: dict
                         sign, axis))
     return sensors[0]
 
-
-def rotation_matrices(data: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) from a RotationMatrix sensor's 9 columns (row by row)."""
-    return data.reshape(-1, 3, 3)
-
-
-__all__ = ["build_spatial", "CONSTRAINED_AXES", "SpatialModel", "joint_frames", "quaternion_to_matrix"]

@@ -145,3 +145,24 @@ def test_index2_on_redundant_constraints_is_refused_with_the_reason():
     system, t = CASES["spherical four-bar"]()
     with pytest.raises(ValueError, match="index2.*3 redundant"):
         engine_run(system, t[:3], solver="index2")
+
+
+@pytest.mark.parametrize("name", ["delta", "RSSR", "fixed", "planar"])
+def test_compiled_model_holds_the_scene_s_inertia_and_joints(name):
+    """Read back from Exudyn's items (`spatial_model.read_back`): masses,
+    centres of mass, full inertia tensors (products included), each
+    joint's kind, bodies, points and frames, to rounding."""
+    from mechval.engines.exudyn.spatial import start_frame
+    from mechval.engines.exudyn.spatial_model import build_spatial, read_back
+    system, t = CASES[name]()
+    held = read_back(build_spatial(system, start_frame(system, t[0], t[1]), t[0]))
+    for body in system.bodies:
+        got = held[body.name]
+        assert got["mass"] == body.mass
+        np.testing.assert_allclose(got["com"], body.com, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(got["inertia"], body.inertia, rtol=0, atol=1e-12 * np.abs(body.inertia).max())
+    for joint in system.joints:
+        got = held[joint.name]
+        assert (got["kind"], got["body_i"], got["body_j"]) == (joint.kind, joint.body_i, joint.body_j)
+        for key in ("point_i", "point_j", "frame_i", "frame_j"):
+            np.testing.assert_allclose(got[key], getattr(joint, key), rtol=0, atol=1e-14, err_msg=key)

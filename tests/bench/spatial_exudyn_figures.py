@@ -32,7 +32,7 @@ def main() -> None:
         run = adapter.run(mechanism, t, settings)
         cpu = time.process_time() - clock
         ref = spatial_solution(system, t)
-        ratios = worst_ratios(run.frame, ref.frame, ref.missing)
+        ratios = worst_ratios(run.frame, ref.frame, ref.missing, run.missing)
         worst = max(ratios.values())
         print(f"{name}: {settings['solver']}, dt {settings['timestep']:.3g} s, "
               f"{run.info.facts['redundant_constraints']} redundant, engine CPU {cpu:.2f} s; "

@@ -1,5 +1,8 @@
 """Exudyn adapter: a planar multibody model solved by Exudyn's implicit
-second-order solvers (model building in `model`).
+second-order solvers (model building in `model`). A spatial scene
+(`Mechanism.spatial`) goes to `spatial` (settings, run, read-out) and
+`spatial_model` (docs/engines.md, Exudyn, "Spatial scenes"); the rest of
+this docstring is about planar ones.
 
 Conversion of Exudyn's native outputs to the mechval convention:
 - Body motion: `NodeRigidBody2D` coordinates are displacements of (x_G,

@@ -13,16 +13,17 @@ import pytest
 from types import SimpleNamespace
 
 from mechval.adapter import PeakRates, Unrepresentable
+from mechval.model.kinematics import spatial_peak_rate
 from mechval.reference.spatial.columns import body_state
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
 from mechval.reference.spatial.system import JOINT_KINDS
+from mechval.testing import SpatialContract
 from spatial_exudyn_cases import CASES, tumbling, worst_ratios
 from spatial_mechanisms import TumblingBody
 
 pytestmark = pytest.mark.engine
 
 exudyn_adapter = pytest.importorskip("mechval.engines.exudyn.adapter")
-from mechval.engines.exudyn.spatial import reference_rates  # noqa: E402 (needs exudyn)
 
 
 def engine_run(system, t, rates=None, **overrides):
@@ -38,7 +39,7 @@ def reference_and_rates(system, t):
     k = int(np.ceil(2000 / (len(t) - 1)))
     dense = np.linspace(t[0], t[-1], (len(t) - 1) * k + 1)
     ref = spatial_solution(system, dense)
-    rates = PeakRates(dense, ref.frame, reference_rates(system, dense, ref.frame)[0])
+    rates = PeakRates(dense, ref.frame, spatial_peak_rate(spatial_mechanism(system), ref.frame, dense))
     return ref.frame.iloc[::k].reset_index(drop=True), ref.missing, rates
 
 
@@ -166,3 +167,7 @@ def test_compiled_model_holds_the_scene_s_inertia_and_joints(name):
         assert (got["kind"], got["body_i"], got["body_j"]) == (joint.kind, joint.body_i, joint.body_j)
         for key in ("point_i", "point_j", "frame_i", "frame_j"):
             np.testing.assert_allclose(got[key], getattr(joint, key), rtol=0, atol=1e-14, err_msg=key)
+
+
+class TestSpatialContract(SpatialContract):
+    engine = "exudyn"

@@ -51,7 +51,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
+from mechval.adapter import FEATURES, SPATIAL, PeakRates, as_float, steps_per_interval
 from mechval.model.kinematics import dense_grid
 from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
@@ -121,7 +121,7 @@ class ExudynAdapter(EngineAdapter):
     #: Every drive a coordinate constraint, springs and torques engine
     #: elements (`model`). Not redundant constraints: measured on
     #: Exudyn 1.13.6 with the parallelogram double four-bar (docs/engines.md).
-    features = frozenset(FEATURES) - {"redundant constraints"}
+    features = (frozenset(FEATURES) - {"redundant constraints"}) | {SPATIAL}
     #: Every kind, each an `ObjectJointGeneric` (`spatial_model`).
     spatial_joints = frozenset(JOINT_KINDS)
     feature_limits = {"redundant constraints": "its solver stops at the first step on the singular system "

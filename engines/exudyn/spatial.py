@@ -212,58 +212,20 @@ def resultant_columns(system: SpatialSystem, columns: Mapping[str, np.ndarray], 
 #: the scale is far below any tolerance.
 SPATIAL_NEWTON_RELATIVE = 1e-10
 SPATIAL_NEWTON_PER_NEWTON = 1e-11
-#: Instants of the reference motion for Ω and the force scale.
-RATE_GRID = 2001
-
-
-def reference_rates(system: SpatialSystem, t: np.ndarray, frame: pd.DataFrame) -> tuple[float, float]:
-    """Ω (max over bodies and instants of |ω|, √|α|, ∛|jerk|, and
-    `spring_rate`; rad/s) and the force scale Σ m·|a_G − g|·max(1, r) (N; r
-    the largest distance from a body's centre of mass to its joint points)
-    of the reference motion `frame` at the instants t."""
+def force_scale(system: SpatialSystem, t: np.ndarray, frame: pd.DataFrame) -> float:
+    """Σ m·|a_G − g|·max(1, r) (N; r the largest distance from a body's
+    centre of mass to its joint points), the largest over the reference
+    motion `frame` at the instants t: Newton's absolute goal scales with it."""
     from mechval.reference.spatial.columns import body_state
 
     _, _, dw = body_state(system, frame)
-    rate = 0.0
-    for b in system.bodies:
-        w = frame[[f"{b.name}.w{c}" for c in "xyz"]].to_numpy()
-        al = frame[[f"{b.name}.alpha{c}" for c in "xyz"]].to_numpy()
-        jerk = np.gradient(al, t, axis=0)
-        rate = max(rate, np.linalg.norm(w, axis=1).max(), np.sqrt(np.linalg.norm(al, axis=1).max()),
-                   np.cbrt(np.linalg.norm(jerk, axis=1).max()))
     total = np.zeros(len(t))
     g = np.asarray(system.gravity, dtype=float)
     for k, b in enumerate(system.bodies):
         arm = max((float(np.linalg.norm(np.subtract(p, b.com))) for j in system.joints
                    for body, p in ((j.body_i, j.point_i), (j.body_j, j.point_j)) if body == b.name), default=0.0)
         total += b.mass * np.linalg.norm(dw[:, k, :3] - g, axis=1) * max(1.0, arm)
-    return max(float(rate), spring_rate(system)), float(total.max())
-
-
-def planned_rates(system: SpatialSystem, times: np.ndarray):
-    """The reference motion on the step rule's dense grid and its Ω, as
-    the harness's `PeakRates` (one solve, shared by Ω and the force scale)."""
-    from mechval.adapter import PeakRates
-    from mechval.model.kinematics import dense_grid
-
-    t = dense_grid(times, RATE_GRID)
-    frame = spatial_solution(system, t).frame
-    return PeakRates(t, frame, reference_rates(system, t, frame)[0])
-
-
-def spring_rate(system: SpatialSystem) -> float:
-    """The largest √(Σk/m) over the bodies, Σk the stiffness of the
-    springs at the body (rad/s): a stiff spring's oscillation may show only
-    in a translation (A05's slider), which the rotation rates miss; with
-    Ω from rotations alone the undamped A05 missed its accelerations by
-    4.7× the default bound at the step rule's dt, converging as dt²."""
-    stiffness = {b.name: 0.0 for b in system.bodies}
-    for spring in system.springs:
-        for body in (spring.body_a, spring.body_b):
-            if body in stiffness:
-                stiffness[body] += spring.stiffness
-    return max((np.sqrt(k / system.body(name).mass) for name, k in stiffness.items()
-                if k > 0 and system.body(name).mass > 0), default=0.0)
+    return float(total.max())
 
 
 def redundant_constraints(system: SpatialSystem, times: np.ndarray) -> int:
@@ -283,13 +245,12 @@ def spatial_settings(mechanism, times: np.ndarray, rates, rad_per_step: float) -
     until Newton fails: measured on the spherical four-bar, from 1e-11 to
     above the goal in 85 steps), else index-2; Newton goals
     SPATIAL_NEWTON_*."""
-    from mechval.engines.base import default_step
+    from mechval.engines.base import default_step, peak_rates
 
     system = mechanism.spatial
-    if rates is None or f"{system.bodies[0].name}.wx" not in rates.motion:
-        rates = planned_rates(system, times)
-    rate, scale = reference_rates(system, np.asarray(rates.t, dtype=float), pd.DataFrame(rates.motion))
-    dt = default_step(mechanism, times, rad_per_step=rad_per_step, rate=max(rate, float(rates.rate or 0.0)))
+    rates = peak_rates(mechanism, times) if rates is None else rates
+    scale = force_scale(system, np.asarray(rates.t, dtype=float), pd.DataFrame(rates.motion))
+    dt = default_step(mechanism, times, rad_per_step=rad_per_step, rate=rates.rate)
     redundant = redundant_constraints(system, times)
     solver = "index3" if redundant else "index2"
     fd = system.forward_dynamics

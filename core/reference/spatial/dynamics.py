@@ -153,11 +153,15 @@ class SpatialDynamics:
         t = np.asarray(t, dtype=float)
         if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) <= 0) or t[0] != self.t0:
             raise MechanismError("time", "instants must be finite, increasing and start at the initial state's")
-        run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method=method, t_eval=t,
-                        rtol=rtol, atol=atol, **({"jac": self._jacobian} if method == "Radau" else {}))
-        if run.status != 0:
-            raise MechanismError("time", f"the integration stopped: {run.message}")
-        pose, w = self._unpack(run.y.T)
+        if len(t) == 1:         # the initial state itself (scipy integrates no empty span)
+            states, steps = self.initial_vector()[None], 1
+        else:
+            run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method=method, t_eval=t,
+                            rtol=rtol, atol=atol, **({"jac": self._jacobian} if method == "Radau" else {}))
+            if run.status != 0:
+                raise MechanismError("time", f"the integration stopped: {run.message}")
+            states, steps = run.y.T, int(run.t.size)
+        pose, w = self._unpack(states)
         dw, lam = self.accelerations(pose, w, t)
         out = self.c.evaluate(pose, t, w)
         scaling = self.solver.scaling
@@ -167,7 +171,7 @@ class SpatialDynamics:
         state = State(t, pose, w, dw, lam, out["jac"], tuple(self.rows))
         frame, missing = self.solver.frame_of(state, self.found)
         E = energy(self.system, pose, w)
-        facts = {"method": METHODS[method], "rtol": rtol, "atol": atol, "steps": int(run.t.size),
+        facts = {"method": METHODS[method], "rtol": rtol, "atol": atol, "steps": steps,
                  "evaluations": self.evaluations, "constraint_drift_max": float(drift_q),
                  "velocity_drift_max": float(drift_v), "energy_change_max": float(np.abs(E - E[0]).max()),
                  "mobility": self.found.mobility, "redundant_constraints": self.found.redundant}

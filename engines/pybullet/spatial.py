@@ -38,7 +38,7 @@ import pandas as pd
 
 from mechval.adapter import RawRun, RunInfo, Unrepresentable
 from mechval.engines.pybullet.model import NO_CAP, p
-from mechval.engines.pybullet.spatial_build import AXIS_ARM, SpatialModel, build_spatial, principal
+from mechval.engines.pybullet.spatial_build import AXIS_ARM, SpatialModel, build_spatial, check_buildable, principal
 from mechval.engines.pybullet.spatial_reactions import Loads, tree_reactions
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.mechanism import spatial_solution
@@ -60,7 +60,8 @@ def start_state(system: SpatialSystem, t_start: float, dt: float, free: bool):
     """Poses at t_start and the mid-step rates of t_start − dt/2 (prescribed:
     the reference there; free: v − a·dt/2 from the consistent initial state)."""
     if free:
-        pose = spatial_solution(system, np.array([t_start])).frame
+        # Two instants: the dynamics reference integrates over an interval (one instant fails).
+        pose = spatial_solution(system, np.array([t_start, t_start + dt])).frame.iloc[:1]
         rates = pose.copy()
         for b in system.bodies:
             for v, a in zip(("vx", "vy", "vz", "wx", "wy", "wz"), ("ax", "ay", "az", "alphax", "alphay", "alphaz")):
@@ -151,6 +152,7 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     adapter's settings (timestep, preroll_steps); its own DIRECT client,
     always disconnected."""
     from mechval.engines.pybullet.run import step_plan
+    check_buildable(system)             # refused before any solve
     times = np.asarray(times, dtype=float)
     dt, per_sample, preroll = step_plan(times, settings)
     free = system.forward_dynamics

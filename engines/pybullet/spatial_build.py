@@ -49,9 +49,11 @@ AXIS_ARM = 0.1
 #: iterations (no early stop: `configure_solver` sets the residual
 #: threshold 0). Its LCP solvers (Dantzig, which planar scenes use, and PGS)
 #: blow up as soon as a user constraint closes a loop inside one multibody
-#: (the finding `pybullet.mlcp-spatial-loop`); 50 iterations already give
-#: the driven Bennett linkage's figures to 3 digits.
-SOLVER_ITERATIONS = 200
+#: (measured: the RSSR's velocities reach 1e9 within 0.2 s). A driven loop
+#: converges within 50 iterations; Bricard's free, overconstrained one
+#: needs more (its worst angular acceleration error 20× the bound at 200,
+#: 0.1× at 2000, at the same CPU time).
+SOLVER_ITERATIONS = 2000
 #: Kinds a multibody joint (or a chain of them) builds; kinds a loop's
 #: user constraint closes.
 TREE_KINDS = frozenset({"revolute", "prismatic", "spherical", "fixed", "cylindrical", "planar", "universal"})

@@ -1,0 +1,208 @@
+"""PyBullet on spatial scenes (engines/pybullet/spatial*.py) against the
+spatial reference, per column class with mechval's default tolerances:
+positions 1e-4 m and quaternion components 1e-3 absolute; velocities
+(with ω), accelerations (with α), forces, moments and torques relative
+(max |error| over the class's columns / max |reference| over them), 1e-2.
+Only what the reference reports is compared (redundant constraints leave
+some reactions missing there). Each test states its worst ratio to the
+bound as measured on PyBullet 3.2.7 (`ratios`)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mechval.adapter import Unrepresentable
+from mechval.model.drive import DriveLaw
+from mechval.model.mechanism import GROUND, TorqueLaw
+from mechval.model.scenario import DEFAULT_TOLERANCE
+from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
+from mechval.reference.spatial.rotation import frame_from_axis
+from mechval.reference.spatial.system import JointTorque, SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem, Spring
+from spatial_benchmarks import Bricard
+from spatial_mechanisms import GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia, revolute, unit
+from test_spatial_joint_kinds import sliding_body
+
+pytestmark = pytest.mark.engine
+
+CLASSES = {"position": ("x", "y", "z"), "quaternion": ("qw", "qx", "qy", "qz"),
+           "velocity": ("vx", "vy", "vz", "wx", "wy", "wz"),
+           "acceleration": ("ax", "ay", "az", "alphax", "alphay", "alphaz"),
+           "force": ("Fx", "Fy", "Fz", "F"), "torque": ("Mx", "My", "Mz", "T")}
+BOUNDS = {"position": DEFAULT_TOLERANCE["position"], "quaternion": DEFAULT_TOLERANCE["angle"],
+          "velocity": DEFAULT_TOLERANCE["velocity"], "acceleration": DEFAULT_TOLERANCE["acceleration"],
+          "force": DEFAULT_TOLERANCE["force"], "torque": DEFAULT_TOLERANCE["torque"]}
+
+
+@pytest.fixture(scope="module")
+def adapter():
+    pytest.importorskip("pybullet")
+    from mechval.engines.pybullet.adapter import PybulletAdapter
+    return PybulletAdapter()
+
+
+def run(adapter, system: SpatialSystem, t: np.ndarray, **overrides):
+    mechanism = spatial_mechanism(system)
+    settings = {**adapter.default_settings(mechanism, t), **overrides}
+    return adapter.run(mechanism, t, settings)
+
+
+def ratios(adapter, system: SpatialSystem, t: np.ndarray, **overrides) -> dict[str, float]:
+    """Per class: the engine's error over the bound (relative classes over
+    the class's reference peak); a class whose reference peak is 0 is
+    judged against the class's largest other reference (none: left out)."""
+    raw = run(adapter, system, t, **overrides)
+    ref = spatial_solution(system, t)
+    errors: dict[str, list[float]] = {}
+    for column in system.motion_columns() + system.reaction_columns():
+        if column in ref.missing:
+            continue
+        quantity = column.rsplit(".", 1)[1]
+        kind = next(k for k, names in CLASSES.items() if quantity in names)
+        error = float(np.abs(raw.frame[column].to_numpy() - ref.frame[column].to_numpy()).max())
+        peak = float(np.abs(ref.frame[column].to_numpy()).max())
+        e, r = errors.setdefault(kind, [0.0, 0.0])
+        errors[kind] = [max(e, error), max(r, peak)]
+    out = {}
+    for kind, (error, peak) in errors.items():
+        if kind in ("position", "quaternion"):
+            out[kind] = error / BOUNDS[kind]
+        elif peak > 0:
+            out[kind] = error / peak / BOUNDS[kind]
+    return out
+
+
+def assert_within(r: dict[str, float], limit: float = 1.0) -> None:
+    worst = max(r, key=r.get)
+    assert r[worst] <= limit, f"{worst} at {r[worst]:.3g}× its bound ({r})"
+
+
+def test_rssr_driven_closed_loop(adapter):
+    """Loop closed at the ball P (one point-to-point constraint); worst
+    0.023 (the coupler's α)."""
+    assert_within(ratios(adapter, RSSR().system, np.linspace(0.0, 1.0, 51)))
+
+
+def test_spherical_fourbar_redundant_loop(adapter):
+    """Four revolute axes through one point, three redundant constraints;
+    closed at D by two point-to-point constraints; worst 0.06 (output α)."""
+    assert_within(ratios(adapter, SphericalFourBar().system, np.linspace(0.0, 1.0, 51)))
+
+
+def test_bennett_overconstrained(adapter):
+    """Grübler −2, mobility 1; worst 0.13 (link3's α)."""
+    assert_within(ratios(adapter, Bennett().system, np.linspace(0.0, 1.0, 51)))
+
+
+@pytest.mark.xfail(strict=True, reason="the universal joint's moments (peak 5.6e-3 N·m: light shafts) are off by "
+                   "1.9e-4 N·m, 3.45× the torque bound at the step rule, 1.72× at half its step: first order in "
+                   "dt, as PyBullet's output α (0.10× and 0.05× of its bound); motion within 0.1 of its bounds")
+def test_universal_joint_in_a_loop(adapter):
+    """Hooke's joint between a driven shaft and a held one: the universal
+    joint is two revolute joints through a massless cross; the loop closes
+    at the output's bearing (a revolute user-constraint pair)."""
+    beta = np.radians(35.0)
+    a2 = np.array([np.cos(beta), np.sin(beta), 0.0])
+    e_b = np.cross([0.0, 0.0, 1.0], a2)
+    system = SpatialSystem(
+        "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
+                  SpatialBody("output", 1.0, tuple(0.2 * a2), inertia(31))),
+        (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+         SpatialJoint("U", "universal", "input", "output", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                      frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
+         revolute("R2", GROUND, "output", 0.3 * a2, a2, e_b)),
+        (SpatialDrive("R1", DriveLaw(0.0, 2.0, 0.7)),), GRAVITY)
+    assert_within(ratios(adapter, system, np.linspace(0.0, 1.0, 51)))
+
+
+@pytest.mark.parametrize("kind, axis", [("cylindrical", (1.0, 1.0, 1.0)), ("planar", (0.2, -0.3, 1.0))])
+def test_composite_kinds_through_massless_links(adapter, kind, axis):
+    """A cylindrical joint (prismatic + revolute) and a planar one (two
+    prismatic + revolute) through massless links PyBullet accepts: a free
+    body under gravity to 1e-7 of the bounds (the massless links add nothing)."""
+    system, u = sliding_body(kind, axis)
+    v0 = 0.4 * u if kind == "cylindrical" else unit(np.cross(u, [1.0, 0.0, 0.0])) * 0.5
+    system = dataclasses.replace(system, velocities={"body": (tuple(v0), tuple(7.0 * u))})
+    assert_within(ratios(adapter, system, np.linspace(0.0, 1.0, 51)), 1e-5)
+
+
+def test_fixed_joint_and_spring_and_torque_law(adapter):
+    """A crank with a plate welded on (fixed joint), a torque law at its
+    hinge and a spring from the plate to the ground: external loads set
+    every step; worst ratio measured below 1."""
+    axis = unit((0.3, 0.1, 1.0))
+    crank = SpatialBody("crank", 2.0, (0.1, 0.0, 0.05), inertia(50))
+    plate = SpatialBody("plate", 1.0, (0.3, 0.1, -0.1), inertia(51))
+    system = SpatialSystem(
+        "welded crank", (crank, plate),
+        (revolute("O", GROUND, "crank", (0.0, 0.0, 0.0), axis),
+         SpatialJoint("W", "fixed", "crank", "plate", (0.25, 0.0, 0.0), (0.25, 0.0, 0.0))),
+        gravity=GRAVITY,
+        springs=(Spring("spring", GROUND, (0.4, 0.3, 0.2), "plate", (0.3, 0.1, -0.1), 50.0, 0.2, 0.5),),
+        torques=(JointTorque("O", TorqueLaw("O", 0.5, 0.3, 1.0, 0.0, "motor"), "motor"),))
+    assert_within(ratios(adapter, system, np.linspace(0.0, 1.0, 51)))
+
+
+def test_heavy_top_spherical_joint(adapter):
+    """A spherical multibody joint under gravity, spinning at 200 rad/s;
+    0.3 s (about 900 steps at the step rule)."""
+    top = HeavyTop()
+    system = dataclasses.replace(top.system, velocities=top.velocities)
+    assert_within(ratios(adapter, system, np.linspace(0.0, 0.3, 31)))
+
+
+def test_tumbling_body_flips(adapter):
+    """The intermediate-axis flip happens (ω and α within their bounds) ..."""
+    body = TumblingBody()
+    system = dataclasses.replace(body.system, velocities=body.velocities)
+    r = ratios(adapter, system, np.linspace(0.0, 2.4 * body.quarter, 121))
+    assert r["velocity"] <= 1.0 and r["acceleration"] <= 1.0, r
+
+
+@pytest.mark.xfail(strict=True, reason="PyBullet 3.2.7 integrates the gyroscopic term explicitly: the free "
+                   "body's attitude is first-order in dt (finding pybullet.explicit-gyroscopic); at the step "
+                   "rule (0.002 rad per step) its quaternion misses 1e-3 by 3.5× through the flip, 1.8× at "
+                   "half the step")
+def test_tumbling_body_attitude(adapter):
+    body = TumblingBody()
+    system = dataclasses.replace(body.system, velocities=body.velocities)
+    assert_within(ratios(adapter, system, np.linspace(0.0, 2.4 * body.quarter, 121)))
+
+
+def test_delta_robot_is_refused_up_front(adapter):
+    """Each delta loop passes through two driven revolute joints and four
+    universal joints: the loop would close at a universal joint, which no
+    PyBullet user constraint between multibodies makes."""
+    with pytest.raises(Unrepresentable) as refused:
+        adapter.run(spatial_mechanism(Delta().system), np.linspace(0.0, 0.1, 11),
+                    {"timestep": 1e-3, "preroll_steps": 10, "layout": "split"})
+    assert refused.value.key.startswith("joint.") and refused.value.key.endswith(".kind")
+    assert "universal" in refused.value.reason
+
+
+@pytest.mark.slow
+def test_bricard_free_overconstrained_loop(adapter):
+    """A04, released under gravity; 0.3 s. The free revolute P0's axial
+    moment, which the reference gives as 0, grows with time in PyBullet's
+    motion (0.015 N·m at 0.3 s, 2.0× the torque bound): the engine's loop
+    closure puts it there. Everything else within 0.11 of its bound."""
+    r = ratios(adapter, Bricard().system, np.linspace(0.0, 0.3, 31))
+    torque = r.pop("torque")
+    assert_within(r)
+    assert 1.5 < torque < 2.5, f"P0's axial moment at {torque:.3g}× its bound: the figure changed"
+
+
+#: Measured on PyBullet 3.2.7: the free body's energy gain after 2 s at a
+#: 1e-3 s step (1.92e-3 at 5e-4 s: first order). A release that changes it
+#: has changed the integrator: update pybullet.explicit-gyroscopic.
+ENERGY_GAIN = 3.85e-3
+
+
+def test_explicit_gyroscopic_finding_still_present(adapter):
+    from mechval.engines.pybullet import findings
+    m = findings.probe_explicit_gyroscopic()
+    assert m.present and m.figure == pytest.approx(ENERGY_GAIN, rel=0.02), m.describe()
+    # First order: half the step, half the gain.
+    assert findings.tumbling_energy_gain(5e-4) == pytest.approx(ENERGY_GAIN / 2, rel=0.02)

@@ -81,24 +81,25 @@ def assert_within(r: dict[str, float], limit: float = 1.0) -> None:
 
 def test_rssr_driven_closed_loop(adapter):
     """Loop closed at the ball P (one point-to-point constraint); worst
-    0.023 (the coupler's α)."""
+    0.0027 (the universal joint's moment)."""
     assert_within(ratios(adapter, RSSR().system, np.linspace(0.0, 1.0, 51)))
 
 
 def test_spherical_fourbar_redundant_loop(adapter):
     """Four revolute axes through one point, three redundant constraints;
-    closed at D by two point-to-point constraints; worst 0.06 (output α)."""
+    closed at D by two point-to-point constraints; worst 0.0019 (A's moment)."""
     assert_within(ratios(adapter, SphericalFourBar().system, np.linspace(0.0, 1.0, 51)))
 
 
 def test_bennett_overconstrained(adapter):
-    """Grübler −2, mobility 1; worst 0.13 (link3's α)."""
+    """Grübler −2, mobility 1; worst 0.10 (link3's α: one blip at 0.86 s)."""
     assert_within(ratios(adapter, Bennett().system, np.linspace(0.0, 1.0, 51)))
 
 
 @pytest.mark.xfail(strict=True, reason="the universal joint's moments (peak 5.6e-3 N·m: light shafts) are off by "
-                   "1.9e-4 N·m, 3.45× the torque bound at the step rule, 1.72× at half its step: first order in "
-                   "dt, as PyBullet's output α (0.10× and 0.05× of its bound); motion within 0.1 of its bounds")
+                   "2.9e-4 N·m, 5.25× the torque bound at the step rule, 2.62× at half its step: first order in "
+                   "dt (PyBullet's velocity-dependent terms at the step's start, as pybullet.explicit-gyroscopic); "
+                   "the motion within 6e-4 of its bounds")
 def test_universal_joint_in_a_loop(adapter):
     """Hooke's joint between a driven shaft and a held one: the universal
     joint is two revolute joints through a massless cross; the loop closes
@@ -184,14 +185,10 @@ def test_delta_robot_is_refused_up_front(adapter):
 
 @pytest.mark.slow
 def test_bricard_free_overconstrained_loop(adapter):
-    """A04, released under gravity; 0.3 s. The free revolute P0's axial
-    moment, which the reference gives as 0, grows with time in PyBullet's
-    motion (0.015 N·m at 0.3 s, 2.0× the torque bound): the engine's loop
-    closure puts it there. Everything else within 0.11 of its bound."""
-    r = ratios(adapter, Bricard().system, np.linspace(0.0, 0.3, 31))
-    torque = r.pop("torque")
-    assert_within(r)
-    assert 1.5 < torque < 2.5, f"P0's axial moment at {torque:.3g}× its bound: the figure changed"
+    """A04, released under gravity, its first second (about 8 s of CPU):
+    worst 0.86 (bar3's position; it grows as the bars fall, so the
+    benchmark's 10 s is not claimed here)."""
+    assert_within(ratios(adapter, Bricard().system, np.linspace(0.0, 1.0, 51)))
 
 
 #: Measured on PyBullet 3.2.7: the free body's energy gain after 2 s at a

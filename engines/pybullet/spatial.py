@@ -4,17 +4,17 @@ convert to mechval's raw spatial columns (`SpatialSystem.motion_columns`,
 `reaction_columns`).
 
 Readings and their stamps (as for planar scenes, docs/engines.md):
-- pose at t_n: each body's link frame (its inbound joint's point, body
-  orientation; a free base's centre-of-mass frame) before the step from
-  t_n; the frame origin and quaternion (w ≥ 0) follow;
-- ω at t_n: the mean of the readings before and after that step (the
-  semi-implicit Euler velocities stand for the steps' middles); α: their
-  difference over dt, what the step applied;
+- pose at t_n: each body's centre-of-mass frame before the step from t_n
+  (PyBullet's URDF link frame is rounded to single precision); the frame
+  origin and quaternion (w ≥ 0) follow;
 - the origin's velocity and acceleration: central differences of its
-  positions one step either side (a velocity reading maps the mid-step
-  joint rates through the Jacobian at the step's end, O(dt) off wherever
-  the motion depends on the configuration: the planar adapter's lesson);
-  a free run's first sample, with no step before it, keeps the readings;
+  positions one step either side, and ω and α likewise from the attitudes
+  (the turns over the steps before and after t_n): a velocity reading maps
+  the mid-step joint rates through the Jacobian at the step's end, O(dt)
+  off wherever the motion depends on the configuration (the planar
+  adapter's lesson; for ω as soon as joint axes turn); a free run's first
+  sample, with no step before it, keeps the readings (ω the mean of those
+  either side of the step, α their difference);
 - forces read after the step from t_n acted during it: stamped t_n.
 
 Reactions: a loop joint's from its constraints' forces (on the child,
@@ -35,6 +35,7 @@ from typing import Any, Mapping
 
 import numpy as np
 import pandas as pd
+from scipy.spatial.transform import Rotation
 
 from mechval.adapter import RawRun, RunInfo, Unrepresentable
 from mechval.engines.pybullet.model import NO_CAP, p
@@ -254,21 +255,31 @@ class Stepper:
             name = b.name
             x = np.array([s[name][0] for s in before])
             R = np.array([s[name][1] for s in before])
-            x_after = np.array([s[name][0] for s in after])
             v = 0.5 * (np.array([s[name][2] for s in before]) + np.array([s[name][2] for s in after]))
             a = (np.array([s[name][2] for s in after]) - np.array([s[name][2] for s in before])) / self.dt
             w_pre, w_post = np.array([s[name][3] for s in before]), np.array([s[name][3] for s in after])
+            w, al = 0.5 * (w_pre + w_post), (w_post - w_pre) / self.dt
             if back:
                 x_back = np.array([earlier[k][name][0] for k in back])
-                v[back] = (x_after[back] - x_back) / (2 * self.dt)
-                a[back] = (x_after[back] - 2 * x[back] + x_back) / self.dt ** 2
+                x_after = np.array([after[k][name][0] for k in back])
+                v[back] = (x_after - x_back) / (2 * self.dt)
+                a[back] = (x_after - 2 * x[back] + x_back) / self.dt ** 2
+                # The same for the attitude: the turns over the step before
+                # and the step after t_n (a reading of ω maps mid-step joint
+                # rates through the end of the step's axes, O(dt) off once
+                # the axes turn).
+                R_back = np.array([earlier[k][name][1] for k in back])
+                R_after = np.array([after[k][name][1] for k in back])
+                turn_in = Rotation.from_matrix(R[back] @ np.swapaxes(R_back, 1, 2)).as_rotvec() / self.dt
+                turn_out = Rotation.from_matrix(R_after @ np.swapaxes(R[back], 1, 2)).as_rotvec() / self.dt
+                w[back] = Rotation.from_matrix(R_after @ np.swapaxes(R_back, 1, 2)).as_rotvec() / (2 * self.dt)
+                al[back] = (turn_out - turn_in) / self.dt
             q = matrix_to_quaternion(R)
             values = {"x": x[:, 0], "y": x[:, 1], "z": x[:, 2], "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2],
                       "qz": q[:, 3]}
             for k, axis in enumerate("xyz"):
                 values[f"v{axis}"], values[f"a{axis}"] = v[:, k], a[:, k]
-                values[f"w{axis}"] = 0.5 * (w_pre[:, k] + w_post[:, k])
-                values[f"alpha{axis}"] = (w_post[:, k] - w_pre[:, k]) / self.dt
+                values[f"w{axis}"], values[f"alpha{axis}"] = w[:, k], al[:, k]
             columns.update({f"{name}.{q_}": val for q_, val in values.items()})
         for key in reactions[0]:
             columns[key] = np.array([r[key] for r in reactions])

@@ -39,8 +39,9 @@ from scipy.spatial.transform import Rotation
 
 from mechval.adapter import RawRun, RunInfo, Unrepresentable
 from mechval.engines.pybullet.model import NO_CAP, p
-from mechval.engines.pybullet.spatial_build import AXIS_ARM, SpatialModel, build_spatial, check_buildable, principal
+from mechval.engines.pybullet.spatial_build import AXIS_ARM, SpatialModel, build_spatial, buildable, principal
 from mechval.engines.pybullet.spatial_reactions import Loads, tree_reactions
+from mechval.engines.pybullet.spatial_split import is_weld
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.mechanism import spatial_solution
 from mechval.reference.spatial.rotation import matrix_to_quaternion, quaternion_to_matrix
@@ -70,6 +71,13 @@ def start_state(system: SpatialSystem, t_start: float, dt: float, free: bool):
         return pose, rates
     both = spatial_solution(system, np.array([t_start - dt / 2, t_start])).frame
     return both.iloc[1:].reset_index(drop=True), both.iloc[:1].reset_index(drop=True)
+
+
+def _with_twins(frame: pd.DataFrame, twins: dict[str, str]) -> pd.DataFrame:
+    """The reference's columns with each split body's twin as the body."""
+    extra = {f"{twin}.{c.split('.', 1)[1]}": frame[c] for twin, body in twins.items()
+             for c in frame.columns if c.startswith(body + ".")}
+    return frame.assign(**extra) if extra else frame
 
 
 def set_rates(system: SpatialSystem, model: SpatialModel, pose: pd.DataFrame, rates: pd.DataFrame) -> None:
@@ -153,7 +161,7 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     adapter's settings (timestep, preroll_steps); its own DIRECT client,
     always disconnected."""
     from mechval.engines.pybullet.run import step_plan
-    check_buildable(system)             # refused before any solve
+    built, twins = buildable(system)    # refused before any solve
     times = np.asarray(times, dtype=float)
     dt, per_sample, preroll = step_plan(times, settings)
     free = system.forward_dynamics
@@ -162,19 +170,21 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     started = time.perf_counter()
     t_start = float(times[0]) - preroll * dt
     pose, rates = start_state(system, t_start, dt, free)
-    pos = {b.name: _columns(pose, b.name, "x y z") for b in system.bodies}
-    rot = {b.name: quaternion_to_matrix(_columns(pose, b.name, "qw qx qy qz")) for b in system.bodies}
-    model = build_spatial(system, dt, pos, rot)
+    pose, rates = _with_twins(pose, twins), _with_twins(rates, twins)
+    pos = {b.name: _columns(pose, b.name, "x y z") for b in built.bodies}
+    rot = {b.name: quaternion_to_matrix(_columns(pose, b.name, "qw qx qy qz")) for b in built.bodies}
+    model = build_spatial(built, dt, pos, rot)
     try:
-        set_rates(system, model, pose, rates)
-        built = time.perf_counter()
-        frame, steps, loads = Stepper(system, model, times, per_sample, preroll).run()
-        wall = time.perf_counter() - built
+        set_rates(built, model, pose, rates)
+        ready = time.perf_counter()
+        frame, steps, loads = Stepper(built, model, times, per_sample, preroll, system).run()
+        wall = time.perf_counter() - ready
     finally:
         p.disconnect(model.client)
-    frame = frame.assign(**tree_reactions(system, model, frame, loads))
-    info = {"timestep_used": dt, "steps": steps, "build_time_s": built - started, "wall_time_s": wall,
+    frame = frame.assign(**tree_reactions(built, model, frame, loads))
+    info = {"timestep_used": dt, "steps": steps, "build_time_s": ready - started, "wall_time_s": wall,
             "tree_joints": ", ".join(model.tree), "loop_joints": ", ".join(model.loops) or "none",
+            "split_bodies": ", ".join(twins.values()) or "none",
             "reactions": "loop joints: their constraints' forces; tree joints: derived from the balance of the "
                          "bodies below them with PyBullet's motion and loads (its sensor misreads)"}
     columns = ["t", *system.motion_columns(), *system.reaction_columns()]
@@ -184,11 +194,14 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
 class Stepper:
     """Drives, loads and readings of one run."""
 
-    def __init__(self, system: SpatialSystem, model: SpatialModel, times: np.ndarray, per_sample: int, preroll: int):
+    def __init__(self, system: SpatialSystem, model: SpatialModel, times: np.ndarray, per_sample: int, preroll: int,
+                 scene: SpatialSystem | None = None):
+        # `system` is what PyBullet builds (split bodies' halves); `scene`
+        # the user's, whose loads apply (to a split body's first half).
         self.system, self.model, self.times = system, model, times
         self.per_sample, self.preroll, self.dt, self.c = per_sample, preroll, model.timestep, model.client
         self.reader = Reader(system, model)
-        self.loads = Loads(system)
+        self.loads = Loads(scene or system)
         self.motors = []
         for d in system.drives:
             tj = model.tree[d.joint]
@@ -232,6 +245,16 @@ class Stepper:
         out = {}
         for name, loop in self.model.loops.items():
             j = loop.joint
+            if is_weld(j):
+                # PyBullet reports a fixed constraint's load on its parent: the
+                # force in world axes, the moment (about the pivot) in the
+                # parent's centre-of-mass axes (measured: the delta's joint
+                # moments off by 24× their bound read in world axes, 6e-4× so).
+                load = -np.array(p.getConstraintState(loop.cids[0], physicsClientId=self.c))
+                load[3:] = state[j.body_i][1] @ principal(self.system.body(j.body_i).inertia)[1] @ load[3:]
+                for k, axis in enumerate("xyz"):
+                    out[f"{name}.F{axis}"], out[f"{name}.M{axis}"] = load[k], load[3 + k]
+                continue
             forces = [np.array(p.getConstraintState(cid, physicsClientId=self.c)[:3]) for cid in loop.cids]
             force = sum(forces)
             moment = np.zeros(3)

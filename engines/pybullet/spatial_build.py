@@ -36,6 +36,7 @@ import numpy as np
 
 from mechval.engines.base import Unrepresentable
 from mechval.engines.pybullet.model import NO_CAP, NO_SPEED_LIMIT, configure_solver, p
+from mechval.engines.pybullet.spatial_split import is_weld, plan
 from mechval.engines.base import native_output_silenced
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.rotation import matrix_to_quaternion
@@ -120,7 +121,7 @@ def tree_rank(system: SpatialSystem):
     last joint of its loop in this order)."""
     driven = {d.joint for d in system.drives} | {t.joint for t in system.torques}
     order = {"revolute": 1, "spherical": 2}
-    return lambda j: (0 if j.name in driven else order.get(j.kind, 0))
+    return lambda j: 3 if is_weld(j) else (0 if j.name in driven else order.get(j.kind, 0))
 
 
 def cut_joints(system: SpatialSystem) -> list[SpatialJoint]:
@@ -142,15 +143,17 @@ def cut_joints(system: SpatialSystem) -> list[SpatialJoint]:
     return cuts
 
 
-def check_buildable(system: SpatialSystem) -> list[SpatialJoint]:
-    """The loop joints, or Unrepresentable naming the first that cannot close."""
-    cuts = cut_joints(system)
-    for j in cuts:
-        if j.kind not in LOOP_KINDS:
-            raise Unrepresentable(f"joint.{j.name}.kind", f"a {j.kind} joint {LOOP_REFUSED}")
-        if any(d.joint == j.name for d in system.drives) or any(t.joint == j.name for t in system.torques):
-            raise Unrepresentable(f"joint.{j.name}", "a drive or torque law on a joint that closes a loop")
-    return cuts
+def closable(system: SpatialSystem, joint: SpatialJoint) -> bool:
+    """Whether a user constraint closes a loop at `joint` (not driven)."""
+    driven = any(d.joint == joint.name for d in system.drives) or any(t.joint == joint.name for t in system.torques)
+    return not driven and (joint.kind in LOOP_KINDS or is_weld(joint))
+
+
+def buildable(system: SpatialSystem) -> tuple[SpatialSystem, dict[str, str]]:
+    """The system built (`spatial_split.plan`: bodies split where a loop
+    cannot close at a joint) and its {twin: body}; Unrepresentable naming
+    the joint where neither works."""
+    return plan(system, closable, cut_joints)
 
 
 def world_axes(joint: SpatialJoint, side: str, rotation: np.ndarray) -> np.ndarray:
@@ -202,7 +205,7 @@ def build_spatial(system: SpatialSystem, timestep: float, pos: dict[str, np.ndar
                   rot: dict[str, np.ndarray]) -> SpatialModel:
     """A DIRECT client with the scene built in the start pose (per body:
     frame origin `pos`, rotation `rot`; the ground at the identity)."""
-    cuts = {j.name for j in check_buildable(system)}
+    cuts = {j.name for j in cut_joints(system)}
     client = p.connect(p.DIRECT)
     try:
         with native_output_silenced():
@@ -226,23 +229,31 @@ def build_spatial(system: SpatialSystem, timestep: float, pos: dict[str, np.ndar
 
 
 def _multibodies(system: SpatialSystem, cuts: set[str]) -> dict[str, list[tuple[SpatialJoint, str, str]]]:
-    """{root: [(joint, parent, child)] breadth first}: the ground's group,
-    then each group of moving bodies not joined to it, rooted at its first body."""
+    """{root: [(joint, parent, child)] depth first}: the ground's group,
+    then each group of moving bodies not joined to it, rooted at its first
+    body. Depth first because PyBullet numbers a multibody's links so
+    (measured: links given breadth first came back renumbered, and every
+    index read the wrong link)."""
     tree = [j for j in system.joints if j.name not in cuts]
     placed, groups = set(), {}
+
+    def visit(body: str, links: list) -> None:
+        children = []
+        for j in tree:
+            for parent, child in ((j.body_i, j.body_j), (j.body_j, j.body_i)):
+                if parent == body and child not in placed:
+                    placed.add(child)
+                    children.append((j, parent, child))
+        for link in children:
+            links.append(link)
+            visit(link[2], links)
+
     for root in [GROUND] + [b.name for b in system.bodies]:
         if root in placed:
             continue
         placed.add(root)
-        links, frontier = [], [root]
-        while frontier:
-            body = frontier.pop(0)
-            for j in tree:
-                for parent, child in ((j.body_i, j.body_j), (j.body_j, j.body_i)):
-                    if parent == body and child not in placed:
-                        placed.add(child)
-                        links.append((j, parent, child))
-                        frontier.append(child)
+        links: list = []
+        visit(root, links)
         if root != GROUND or links:
             groups[root] = links
     return groups
@@ -326,6 +337,13 @@ def _close_loop(system: SpatialSystem, model: SpatialModel, joint: SpatialJoint)
     parent; each pivot in its body's centre-of-mass frame (principal axes
     at the centre of mass: PyBullet's frame of a user constraint's pivot)."""
     points = [(np.asarray(joint.point_i, float), np.asarray(joint.point_j, float))]
+    if is_weld(joint):
+        (ui, li), (uj, lj) = _handle(model, joint.body_i), _handle(model, joint.body_j)
+        cid = p.createConstraint(ui, li, uj, lj, p.JOINT_FIXED, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                                 physicsClientId=model.client)        # both pivots at the centre of mass
+        p.changeConstraint(cid, maxForce=NO_CAP, physicsClientId=model.client)
+        model.loops[joint.name] = LoopJoint(joint, joint.body_j, (cid,))
+        return
     if joint.kind == "revolute":
         points.append((points[0][0] + AXIS_ARM * joint.frame_i[:, 2], points[0][1] + AXIS_ARM * joint.frame_j[:, 2]))
     cids = []

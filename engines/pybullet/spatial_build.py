@@ -55,6 +55,7 @@ AXIS_ARM = 0.1
 #: needs more (its worst angular acceleration error 20× the bound at 200,
 #: 0.1× at 2000, at the same CPU time).
 SOLVER_ITERATIONS = 2000
+SOLVER = p.CONSTRAINT_SOLVER_LCP_SI
 #: Kinds a multibody joint (or a chain of them) builds; kinds a loop's
 #: user constraint closes.
 TREE_KINDS = frozenset({"revolute", "prismatic", "spherical", "fixed", "cylindrical", "planar", "universal"})
@@ -210,7 +211,7 @@ def build_spatial(system: SpatialSystem, timestep: float, pos: dict[str, np.ndar
     try:
         with native_output_silenced():
             configure_solver(client, timestep, (0.0, 0.0))
-            p.setPhysicsEngineParameter(constraintSolverType=p.CONSTRAINT_SOLVER_LCP_SI,
+            p.setPhysicsEngineParameter(constraintSolverType=SOLVER,
                                         numSolverIterations=SOLVER_ITERATIONS, physicsClientId=client)
         p.setGravity(*system.gravity, physicsClientId=client)
         model = SpatialModel(client, timestep, {}, {}, {}, {}, {})

@@ -192,6 +192,22 @@ def test_prismatic_drive_on_a_turning_guide(adapter):
     assert_within(ratios(adapter, system, np.linspace(0.0, 1.0, 51)))
 
 
+def test_joint_declared_against_the_tree(adapter):
+    """A driven two-link arm whose elbow names the outer link body_i: the
+    tree hangs that link as the elbow's child, so the elbow's coordinate,
+    drive torque and reaction change sign (`spatial_reactions`); worst
+    4.4e-4 (a moment)."""
+    upper = SpatialBody("upper", 1.0, (0.15, 0.0, 0.0), inertia(90))
+    fore = SpatialBody("fore", 0.6, (0.4, 0.05, 0.0), inertia(91))
+    elbow = revolute("elbow", "fore", "upper", (0.3, 0.0, 0.0), unit((0.0, 0.3, 1.0)), (1.0, 0.0, 0.0))
+    system = SpatialSystem(
+        "reversed elbow", (upper, fore),
+        (revolute("shoulder", GROUND, "upper", (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)), elbow),
+        (SpatialDrive("shoulder", DriveLaw(0.0, 1.0, 0.5), "d1"), SpatialDrive("elbow", DriveLaw(0.0, -2.0, 1.0), "d2")),
+        GRAVITY)
+    assert_within(ratios(adapter, system, np.linspace(0.0, 1.0, 51)))
+
+
 def test_heavy_top_spherical_joint(adapter):
     """A spherical multibody joint under gravity, spinning at 200 rad/s;
     0.3 s (about 900 steps at the step rule)."""

@@ -20,7 +20,7 @@ from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
 from mechval.reference.spatial.rotation import frame_from_axis
 from mechval.reference.spatial.system import BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem, Spring
-from spatial_benchmarks import Bricard
+from spatial_benchmarks import Bricard, FlyballGovernor
 from spatial_mechanisms import GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia, revolute, unit
 from test_spatial_joint_kinds import sliding_body
 
@@ -250,6 +250,17 @@ def test_bricard_free_overconstrained_loop(adapter):
     worst 0.86 (bar3's position; it grows as the bars fall, so the
     benchmark's 10 s is not claimed here)."""
     assert_within(ratios(adapter, Bricard().system, np.linspace(0.0, 1.0, 51)))
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="A05's stiff spring-dampers (k 8e5 N/m, c 4e4 N·s/m) are external loads "
+                   "PyBullet takes explicitly (it has no spring element): c·dt/m = 0.83 for the 3 kg slider at the "
+                   "step rule's 6.25e-5 s, near explicit damping's limit; over 10 ms the slider's acceleration "
+                   "misses its bound 38×, the pins' forces 3.6×")
+def test_flyball_governor_stiff_springs(adapter):
+    governor = FlyballGovernor()
+    system = dataclasses.replace(governor.system, velocities=governor.velocities)
+    assert_within(ratios(adapter, system, np.linspace(0.0, 0.01, 21)))
 
 
 #: Measured on PyBullet 3.2.7: the free body's energy gain after 2 s at a

@@ -119,6 +119,8 @@ class PybulletAdapter(EngineAdapter):
         }
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        if mechanism.spatial is not None:
+            raise NotImplementedError(f"{self.name}: no model audit of spatial scenes yet")
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:

@@ -60,6 +60,8 @@ from mechval.settings import TIMESTEP, Choice, Number, Setting
 from mechval.engines.base import EngineAdapter, PeakRates, RawRun, default_step, peak_rates
 from mechval.engines.pybullet.audit import audit_model
 from mechval.engines.pybullet.run import run_model
+from mechval.engines.pybullet.spatial import peak_rate as spatial_peak_rate, run_spatial
+from mechval.engines.pybullet.spatial_build import TREE_KINDS
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
 #: base.default_step). PyBullet's rocker sensor converges only as O(dt)
@@ -85,6 +87,9 @@ class PybulletAdapter(EngineAdapter):
     #: Every drive is a position-controlled leaf joint; spring-dampers and
     #: body torques are external loads set every step (Stepper).
     features = frozenset(FEATURES)
+    #: Spatial scenes (`spatial`): PyBullet's own joints, composite kinds as
+    #: chains through massless links, loops closed at spherical or revolute joints.
+    spatial_joints = TREE_KINDS
 
     step_settings = ("timestep", "preroll_steps")
     output_copies, bytes_per_step = 32, 32
@@ -100,7 +105,10 @@ class PybulletAdapter(EngineAdapter):
         torque-driven or free run, which starts at its first instant with
         no pre-roll); Ω is the prepared scene's (`rates`), else computed
         here."""
-        rate = (peak_rates(mechanism, times) if rates is None else rates).rate
+        if mechanism.spatial is not None and rates is None:
+            rate = spatial_peak_rate(mechanism.spatial, times)
+        else:
+            rate = (peak_rates(mechanism, times) if rates is None else rates).rate
         if mechanism.forward_dynamics:
             return {"timestep": default_step(mechanism, times, rad_per_step=FREE_RAD_PER_STEP, rate=rate),
                     "preroll_steps": 0, "layout": "split"}
@@ -111,9 +119,13 @@ class PybulletAdapter(EngineAdapter):
         }
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        if mechanism.spatial is not None:
+            raise NotImplementedError(f"{self.name}: no model audit of spatial scenes yet")
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.spatial is not None:
+            return run_spatial(mechanism.spatial, times, settings)
         return run_model(mechanism, times, settings)
 
 

@@ -19,6 +19,7 @@ from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
 from mechval.reference.spatial.rotation import frame_from_axis
+from mechval.testing import SpatialContract
 from mechval.reference.spatial.system import BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem, Spring
 from spatial_benchmarks import Bricard, FlyballGovernor
 from spatial_mechanisms import GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia, revolute, unit
@@ -275,3 +276,17 @@ def test_explicit_gyroscopic_finding_still_present(adapter):
     assert m.present and m.figure == pytest.approx(ENERGY_GAIN, rel=0.02), m.describe()
     # First order: half the step, half the gain.
     assert findings.tumbling_energy_gain(5e-4) == pytest.approx(ENERGY_GAIN / 2, rel=0.02)
+
+
+#: Measured on PyBullet 3.2.7 at the default step (3.1e-4 s): its
+#: semi-implicit Euler step is first order, and free flight shows it.
+FREE_FLIGHT = ("the centre of mass is 5.0e-4 m off its parabola after 1 s (bound 1e-4 m), 2.5e-4 at half the "
+               "step, 1.25e-4 at a quarter: first order in the step")
+
+
+class TestSpatialContract(SpatialContract):
+    engine = "pybullet"
+
+    @pytest.mark.xfail(strict=True, reason=FREE_FLIGHT)
+    def test_a_free_body_keeps_its_momentum(self, adapter):
+        super().test_a_free_body_keeps_its_momentum(adapter)

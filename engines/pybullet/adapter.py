@@ -53,14 +53,14 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, as_float, steps_per_interval
+from mechval.adapter import FEATURES, SPATIAL, as_float, steps_per_interval
 from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from mechval.engines.base import EngineAdapter, PeakRates, RawRun, default_step, peak_rates
 from mechval.engines.pybullet.audit import audit_model
 from mechval.engines.pybullet.run import run_model
-from mechval.engines.pybullet.spatial import peak_rate as spatial_peak_rate, run_spatial
+from mechval.engines.pybullet.spatial import run_spatial
 from mechval.engines.pybullet.spatial_build import TREE_KINDS
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
@@ -86,7 +86,7 @@ class PybulletAdapter(EngineAdapter):
     cost_variants = {"Dantzig": {}}
     #: Every drive is a position-controlled leaf joint; spring-dampers and
     #: body torques are external loads set every step (Stepper).
-    features = frozenset(FEATURES)
+    features = frozenset(FEATURES) | {SPATIAL}
     #: Spatial scenes (`spatial`): PyBullet's own joints, composite kinds as
     #: chains through massless links, loops closed at spherical or revolute joints.
     spatial_joints = TREE_KINDS
@@ -105,10 +105,7 @@ class PybulletAdapter(EngineAdapter):
         torque-driven or free run, which starts at its first instant with
         no pre-roll); Ω is the prepared scene's (`rates`), else computed
         here."""
-        if mechanism.spatial is not None and rates is None:
-            rate = spatial_peak_rate(mechanism.spatial, times)
-        else:
-            rate = (peak_rates(mechanism, times) if rates is None else rates).rate
+        rate = (peak_rates(mechanism, times) if rates is None else rates).rate
         if mechanism.forward_dynamics:
             return {"timestep": default_step(mechanism, times, rad_per_step=FREE_RAD_PER_STEP, rate=rate),
                     "preroll_steps": 0, "layout": "split"}

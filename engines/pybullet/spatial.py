@@ -29,7 +29,6 @@ a drive's effort is its motor's applied torque or force as read.
 
 from __future__ import annotations
 
-import math
 import time
 from typing import Any, Mapping
 
@@ -307,19 +306,3 @@ class Stepper:
         for key in reactions[0]:
             columns[key] = np.array([r[key] for r in reactions])
         return pd.DataFrame(columns)
-
-
-def peak_rate(system: SpatialSystem, times: np.ndarray) -> float:
-    """Ω of the step rule from the reference motion on the dense grid: the
-    largest |ω|, sqrt|α|, cbrt|jerk| over the bodies."""
-    from mechval.model.kinematics import dense_grid
-    t = dense_grid(times)
-    frame = spatial_solution(system, t).frame
-    rate = 0.0
-    for b in system.bodies:
-        w = frame[[f"{b.name}.w{a}" for a in "xyz"]].to_numpy()
-        al = frame[[f"{b.name}.alpha{a}" for a in "xyz"]].to_numpy()
-        jerk = np.gradient(al, t, axis=0)
-        rate = max(rate, np.linalg.norm(w, axis=1).max(), math.sqrt(np.linalg.norm(al, axis=1).max()),
-                   np.cbrt(np.linalg.norm(jerk, axis=1).max()))
-    return float(rate)

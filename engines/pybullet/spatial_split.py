@@ -17,7 +17,7 @@ import dataclasses
 
 from mechval.engines.base import Unrepresentable
 from mechval.model.mechanism import GROUND
-from mechval.reference.spatial.system import SpatialBody, SpatialJoint, SpatialSystem
+from mechval.reference.spatial.system import SpatialJoint, SpatialSystem
 
 #: Suffixes of a split body's second half and of its weld joint.
 TWIN, WELD = "~", "~weld"

@@ -22,6 +22,7 @@ from typing import Mapping
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from mechval.reference.dynamics import MAX_EVALUATIONS
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_matrix, world_inertia
 from mechval.reference.spatial.joints import Pose
@@ -110,6 +111,9 @@ class SpatialDynamics:
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         self.evaluations += 1
+        if self.evaluations > MAX_EVALUATIONS:      # as the planar integration's limit (README, "Limits")
+            raise MechanismError("time.end", f"the reference's integration reached only t = {t:.6g} s in "
+                                             f"{MAX_EVALUATIONS:,} evaluations, the limit; shorten time.end")
         nb = len(self.system.bodies)
         pose, w = self._unpack(y[None])
         dw, _ = self.accelerations(pose, w, np.array([t]))
@@ -125,8 +129,13 @@ class SpatialDynamics:
         t = np.asarray(t, dtype=float)
         if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) <= 0) or t[0] != self.t0:
             raise MechanismError("time", "instants must be finite, increasing and start at the initial state's")
-        run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method="DOP853", t_eval=t,
-                        rtol=rtol, atol=atol)
+        try:
+            with np.errstate(over="raise", invalid="raise", divide="raise"):
+                run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method="DOP853", t_eval=t,
+                                rtol=rtol, atol=atol)
+        except (FloatingPointError, np.linalg.LinAlgError) as exc:
+            raise MechanismError("time", f"the integration fails ({exc}): loads out of scale for the masses and "
+                                         "sizes, or a position where the joints' rows turn dependent") from None
         if run.status != 0:
             raise MechanismError("time", f"the integration stopped: {run.message}")
         pose, w = self._unpack(run.y.T)

@@ -115,7 +115,7 @@ def rows(table: Reader, key: str, what: str) -> np.ndarray:
     value = table.table.get(key)
     if not isinstance(value, list) or len(value) != 3:
         table.fail(key, f"expected three rows of three numbers ({what}), got {shown(value)}")
-    M = np.array([vector(table, f"{key}[{k}]", "", row) for k, row in enumerate(value)])
+    M = np.array([vector(table, f"{key}[{k}]", "(a row)", row) for k, row in enumerate(value)])
     if not np.allclose(M @ M.T, np.eye(3), rtol=0, atol=ORTHONORMAL):
         table.fail(key, f"the rows are not orthonormal ({what}): M·Mᵀ differs from the identity by "
                         f"{np.abs(M @ M.T - np.eye(3)).max():.3g}")

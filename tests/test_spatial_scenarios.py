@@ -185,6 +185,8 @@ REFUSALS = [
      "force[0].body", "unknown body"),
     ("spherical-fourbar", _set("drive.0.omega0", 1e7), "drive[0]", "beyond"),
     ("rssr", _delete("joint.2.axis_j"), "joint.Q.axis_j", "second pin"),
+    # the output pivot moved out of the coupler's reach: the run cannot be followed past t ≈ 1.41 s
+    ("rssr", _set("ground.C", [0.0, 0.45, 0.1]), "time", "the loop cannot close at t = 1.4"),
     ("rssr", _set("joint.1.axis", [0.0, 0.0, 1.0]), "joint.P.axis", "unknown key"),
     ("heavy-top", _set("initial.top.velocity", [1.0, 0.0, 0.0]), "initial.top", "do not satisfy the joints"),
     ("heavy-top", _set("initial.nobody", {"omega": [0.0, 0.0, 1.0]}), "initial.nobody", "unknown key"),
@@ -284,3 +286,9 @@ def test_the_docs_spatial_examples_load_and_run():
         assert scenario.mechanism == "spatial" and scenario.forward_dynamics
         solution = spatial_solution(scenario.scene, scenario.time.t[:11])
         assert solution.facts["constraint_drift_max"] <= 1e-10 and np.isfinite(solution.frame.to_numpy()).all()
+
+
+def test_export_refuses_a_spatial_file(capsys):
+    assert main(["export", "spatial/bricard"]) == 2
+    err = capsys.readouterr().err
+    assert ": mechanism: `mechval export` writes a scene as a planar file" in err and err.count("\n") == 1

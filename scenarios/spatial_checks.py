@@ -48,6 +48,9 @@ def check_spatial(scenario: Scenario) -> None:
             SpatialSolver(scenario.scene).check(0.0, scenario.time.end)
     except MechanismError as exc:
         raise ScenarioError(scenario.source, scenario.key(exc.key), exc.reason) from None
+    except np.linalg.LinAlgError:       # rows exactly dependent at some pose the continuation reached
+        raise ScenarioError(scenario.source, "time", "the Jacobian of the rows the reference keeps is exactly "
+                                                     "singular at a position of the run") from None
 
 
 def check_limits(scenario: Scenario) -> None:

@@ -64,6 +64,9 @@ def analyse_spatial(scenario: Scenario, samples: int | None = None) -> SpatialAn
         solution = spatial_solution(system, t)
     except MechanismError as exc:      # an instant of the denser grid the file's own samples skip
         raise ScenarioError(scenario.source, scenario.key(exc.key), exc.reason) from None
+    except np.linalg.LinAlgError:
+        raise ScenarioError(scenario.source, "time", "the Jacobian of the rows the reference keeps is exactly "
+                                                     "singular at an instant of the run") from None
     s = solution.structure
     cond = _kept_rows_condition(system, solution.frame, s.independent) if integrated else solution.condition
     if cond is None or not len(s.independent):

@@ -292,3 +292,28 @@ def test_export_refuses_a_spatial_file(capsys):
     assert main(["export", "spatial/bricard"]) == 2
     err = capsys.readouterr().err
     assert ": mechanism: `mechval export` writes a scene as a planar file" in err and err.count("\n") == 1
+
+
+def test_named_axes_stand_for_their_vectors():
+    """`axes` of a body (or the ground) named in a joint's `axis`,
+    `reference`, `axis_j`, `reference_j` ("body.AXIS" of that side's body)."""
+    doc = document("delta-robot")
+    plain = parse(doc, "ok.toml").scene
+    named = copy.deepcopy(doc)
+    for joint in named["joint"]:
+        body_i, body_j = (end.split(".")[0] for end in joint["between"])
+        for key, body in (("axis", body_i), ("reference", body_i), ("axis_j", body_j), ("reference_j", body_j)):
+            if key in joint:
+                table = named.setdefault("ground", {}) if body == "ground" else \
+                    next(b for b in named["body"] if b["name"] == body)
+                table.setdefault("axes", {})[f"{joint['name']}_{key}"] = joint[key]
+                joint[key] = f"{body}.{joint['name']}_{key}"
+    read = parse(named, "ok.toml").scene
+    for a, b in zip(plain.joints, read.joints, strict=True):
+        assert np.array_equal(a.frame_i, b.frame_i) and np.array_equal(a.frame_j, b.frame_j), a.name
+    named["joint"][1]["axis_j"] = "arm0.R0_axis"
+    error = refused(named)
+    assert error.key == "joint.E0.axis_j" and "an axis of 'rod0'" in error.reason
+    named["joint"][1]["axis_j"] = "rod0.nothing"
+    error = refused(named)
+    assert error.key == "joint.E0.axis_j" and "'rod0' has no axis 'nothing'" in error.reason

@@ -184,6 +184,11 @@ REFUSALS = [
     ("spherical-fourbar", _set("force", [{"type": "force", "body": "nobody", "force": [0, 0, 1]}]),
      "force[0].body", "unknown body"),
     ("spherical-fourbar", _set("drive.0.omega0", 1e7), "drive[0]", "beyond"),
+    ("delta-robot", lambda doc: doc.update(drive=doc["drive"][:2]), "drive",
+     "the mobility is 3 (rank of the joints' Jacobian, Grübler–Kutzbach 3) but 2 drives prescribe the motion; "
+     "fewer drives than degrees of freedom make an integrated run"),
+    ("delta-robot", lambda doc: doc.update(drive=doc["drive"][:2], initial={"platform": {"velocity": [0, 0, 0]}}),
+     "initial.platform", "do not satisfy the joints"),
     ("rssr", _delete("joint.2.axis_j"), "joint.Q.axis_j", "second pin"),
     # the output pivot moved out of the coupler's reach: the run cannot be followed past t ≈ 1.41 s
     ("rssr", _set("ground.C", [0.0, 0.45, 0.1]), "time", "the loop cannot close at t = 1.4"),

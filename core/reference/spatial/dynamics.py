@@ -121,10 +121,22 @@ class SpatialDynamics:
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         self.calls += 1
-        if self.limit and self.calls > self.limit:      # as the planar integration's limit (README, "Limits")
-            raise MechanismError("time.end", f"the reference's integration reached only t = {t:.6g} s in "
-                                             f"{self.limit:,} evaluations, the limit; shorten time.end")
+        if self.limit and self.calls % (self.limit // 10) == 0:
+            self._check_progress(t)
         return self._rates(t, y[None])[0]
+
+    def _check_progress(self, t: float) -> None:
+        """Refuse a run that reaches the evaluation limit (as the planar
+        integration's, README "Limits"), or, from a tenth of it on, one
+        that at its pace would need ten times the limit: a hopelessly stiff
+        scene ends in seconds rather than after the whole limit."""
+        start, end = self.span
+        done = (t - start) / (end - start)
+        needed = self.calls / done if done > 0 else np.inf
+        if self.calls >= self.limit or needed > 10 * self.limit:
+            raise MechanismError("time.end", f"the reference's integration reached only t = {t:.6g} s of "
+                                             f"{end:g} s in {self.calls:,} evaluations (the run would need about "
+                                             f"{needed:.3g}, the limit is {self.limit:,}); shorten time.end")
 
     def _rates(self, t: float, Y: np.ndarray) -> np.ndarray:
         """ẏ at states Y (N, 13·nb), all at time t, in one batched solve."""
@@ -161,6 +173,7 @@ class SpatialDynamics:
         # the explicit method's evaluations are bounded as the planar
         # integration's; the implicit one is for stiff runs a caller chooses
         self.calls, self.limit = 0, MAX_EVALUATIONS if method == "DOP853" else None
+        self.span = (float(t[0]), float(t[-1]))
         try:
             with np.errstate(over="raise", invalid="raise", divide="raise"):
                 run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method=method, t_eval=t,

@@ -159,64 +159,56 @@ def test_many_mutated_builtins(capfd, tmp_path, name):
     run_all(capfd, tmp_path, cases(name, 12 if name == "twin/fourbar-long-run" else 250, seed=1))
 
 
-#: Spatial files (`mechanism = "spatial"`, scenarios/spatial/): loaded, with
-#: every check of the loader (keys, values, limits, the assembly, the
-#: mobility against the drives, a prescribed run followed to its end, a
-#: consistent initial state), then a prescribed one analysed (`mechval
-#: analyse`: the reference at ≥ 2001 instants). Through `simulate` once the
-#: harness runs spatial scenes.
+#: Spatial files (`mechanism = "spatial"`, scenarios/spatial/): simulated by
+#: the reference as every built-in (the loader's checks: keys, values,
+#: limits, the assembly, the mobility against the drives, a prescribed run
+#: followed to its end, a consistent initial state; then the run), and
+#: analysed (`mechval analyse`: the reference at ≥ 2001 instants, or the
+#: integrated run's kept rows).
 SPATIAL = [f"spatial/{p.stem}" for p in sorted(builtin_path("spatial/x").parent.glob("*.toml"))]
 
 
-def check_spatial_case(capfd, tmp_path, label: str, case: Case) -> int:
-    """Load the case (and analyse it if prescribed): a scenario, or one
-    ScenarioError naming the file, the key and the reason; nothing else."""
-    from mechval.model.scenario import ScenarioError
-    from mechval.scenarios import load
+def check_analyse_case(capfd, tmp_path, label: str, case: Case) -> int:
+    """`mechval analyse` in-process on the case: its report, or one line
+    naming the file, the key and the reason (exit 2); nothing else."""
     path = tmp_path / f"{label}.toml"
     path.write_text(case.toml(), encoding="utf-8")
+    capfd.readouterr()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             with deadline(HANG):
-                scenario = load(str(path))
-                status = 0 if scenario.forward_dynamics else main(["analyse", str(path)])
-        except ScenarioError as error:
-            line = str(error)
-            assert line.count("\n") == 0 and len(line) < 2500 and line.startswith(f"{path}: "), (label, line)
-            assert error.key and error.reason, (label, line)
-            status = 2
+                status = main(["analyse", str(path)])
         except BaseException:
             pytest.fail(f"{label}: {case.steps}\n{traceback.format_exc()}")
     out, err = capfd.readouterr()
     context = f"{label}: {case.steps}\nstdout: {out[:2000]}\nstderr: {err[:2000]}"
     assert not caught, context + "\nwarnings: " + "; ".join(str(w.message) for w in caught)
-    if status == 2 and err:      # refused by `mechval analyse`: one line
-        assert err.startswith(f"mechval: error: {path}: ") and err.count("\n") == 1, context
+    if status == 0:
+        assert out.startswith("scenario ") and "mobility" in out and not err, context
+    else:
+        assert status == 2 and not out and err.startswith(f"mechval: error: {path}: ") and err.count("\n") == 1, \
+            context
     return status
 
 
-def run_spatial(capfd, tmp_path, labelled_cases) -> list[int]:
-    statuses, failures = [], []
-    for label, case in labelled_cases:
-        try:
-            statuses.append(check_spatial_case(capfd, tmp_path, label, case))
-        except (AssertionError, pytest.fail.Exception) as exc:
-            failures.append(str(exc)[:3000])
-    assert not failures, f"{len(failures)} failing cases:\n\n" + "\n\n".join(failures[:10])
-    assert 0 in statuses and 2 in statuses
-    return statuses
+@pytest.mark.parametrize("name", SPATIAL)
+def test_mutated_spatial_files_are_simulated_or_refused(capfd, tmp_path, name):
+    run_all(capfd, tmp_path, cases(name, 8))
 
 
 @pytest.mark.parametrize("name", SPATIAL)
-def test_mutated_spatial_files_are_loaded_or_refused(capfd, tmp_path, name):
-    run_spatial(capfd, tmp_path, cases(name, 8))
+def test_mutated_spatial_files_are_analysed_or_refused(capfd, tmp_path, name):
+    statuses = [check_analyse_case(capfd, tmp_path, label, case) for label, case in cases(name, 4, seed=2)]
+    assert set(statuses) <= {0, 2}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", SPATIAL)
 def test_many_mutated_spatial_files(capfd, tmp_path, name):
-    run_spatial(capfd, tmp_path, cases(name, 250, seed=1))
+    run_all(capfd, tmp_path, cases(name, 250, seed=1))
+    for label, case in cases(name, 40, seed=3):
+        check_analyse_case(capfd, tmp_path, label, case)
 
 
 def engine_document(name: str, engine: str) -> dict:

@@ -20,7 +20,6 @@ from mechval.reference.adapter import ReferenceAdapter
 from mechval.model.drive import DriveLaw
 from mechval.model.scene import signal_map as scene_signal_map
 from mechval.reference.spatial.mechanism import spatial_signal_map
-from mechval.reference.spatial.system import SpatialSystem
 
 #: Most output instants per scenario. The loader itself evaluates the
 #: reference at every sample (closure and trust checks): at 10⁶ samples that
@@ -153,10 +152,10 @@ def reference_bytes(scenario: Scenario) -> float:
 
 def signal_count(scenario: Scenario) -> int:
     """Columns of the scenario's canonical signals (t included)."""
-    closed, scene = scenario.closed_form, scenario.scene
-    if isinstance(scene, SpatialSystem):
-        return 1 + len(spatial_signal_map(scene))
-    return 1 + len(closed.signal_map if closed else scene_signal_map(scene))
+    closed = scenario.closed_form
+    if scenario.mechanism == "spatial":
+        return 1 + len(spatial_signal_map(scenario.scene))
+    return 1 + len(closed.signal_map if closed else scene_signal_map(scenario.scene))
 
 
 def _gib(size: float) -> str:

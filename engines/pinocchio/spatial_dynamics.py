@@ -33,7 +33,7 @@ import pinocchio as pin
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.system import SpatialSystem
 
-from mechval.engines.pinocchio.spatial_model import SpatialModel
+from mechval.engines.pinocchio.spatial_model import SpatialModel, frame_jacobian
 
 WORLD = pin.ReferenceFrame.WORLD
 ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -158,7 +158,7 @@ class SpatialDynamics:
         wrenches = applied_wrenches(self.system, Kinematics(sm, q, v), t)
         pin.computeJointJacobians(sm.model, sm.data, q)
         for body, w in wrenches.items():
-            tau += pin.getFrameJacobian(sm.model, sm.data, sm.frame_of[body], WORLD).T @ w
+            tau += frame_jacobian(sm.model, sm.data, sm.frame_of[body], WORLD).T @ w
         return tau, wrenches
 
     def solve(self, t: float, q: np.ndarray, v: np.ndarray, final: bool = False) -> Solution:
@@ -188,7 +188,8 @@ def rkmk4(dynamics: SpatialDynamics, t0: float, q: np.ndarray, v: np.ndarray, dt
 
     def tangent(xi: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """k with d/dt (q_n ⊕ ξ) = v: k = (∂(q ⊕ ξ)/∂ξ)⁻¹·v."""
-        return np.linalg.solve(pin.dIntegrate(model, q, xi, pin.ArgumentPosition.ARG1), velocity)
+        return np.linalg.solve(np.reshape(pin.dIntegrate(model, q, xi, pin.ArgumentPosition.ARG1),
+                                          (model.nv, model.nv)), velocity)
 
     for n in range(steps):
         t = t0 + n * dt

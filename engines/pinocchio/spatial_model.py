@@ -45,6 +45,11 @@ TREE_RANK = {"fixed": 1, "prismatic": 2, "cylindrical": 2, "universal": 2, "plan
 UNIVERSAL_TURN = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 
 
+def frame_jacobian(model: pin.Model, data: pin.Data, frame_id: int, reference) -> np.ndarray:
+    """A frame's 6 × nv Jacobian (Pinocchio's Python returns a flat 6-vector when nv = 1)."""
+    return np.asarray(pin.getFrameJacobian(model, data, frame_id, reference)).reshape(6, model.nv)
+
+
 def frame(rotation, point) -> pin.SE3:
     return pin.SE3(np.asarray(rotation, dtype=float), np.asarray(point, dtype=float))
 
@@ -125,8 +130,9 @@ def topology(system: SpatialSystem) -> tuple[list[tuple[str, SpatialJoint | None
     cuts = cut_joints(system, lambda j: 0 if j.name in drives else TREE_RANK[j.kind])
     for j in cuts:
         if j.name in drives:
-            raise Unrepresentable(f"drive.{j.name}", "the Pinocchio adapter drives a tree coordinate, and this "
-                                                     "joint closes a loop of other drives")
+            drive = next(d.name for d in system.drives if d.joint == j.name)
+            raise Unrepresentable(f"drive.{drive}", f"the Pinocchio adapter drives a tree coordinate, and joint "
+                                                    f"{j.name} closes a loop of other drives")
     carried = [j for j in cuts if j.kind not in CUTTABLE]
     remaining = [j for j in system.joints if j not in cuts]
     reached, edges = {GROUND}, []
@@ -307,11 +313,11 @@ def start_state(sm: SpatialModel, system: SpatialSystem, poses: dict[str, pin.SE
         if miss > 1e-8:
             raise ValueError(f"pinocchio: the start pose of body {b.name!r} is off by {miss:.3g} in the model")
     pin.computeJointJacobians(model, sm.data, q)
-    rows = [pin.getFrameJacobian(model, sm.data, sm.frame_of[b.name], pin.LOCAL_WORLD_ALIGNED)
+    rows = [frame_jacobian(model, sm.data, sm.frame_of[b.name], pin.LOCAL_WORLD_ALIGNED)
             for b in system.bodies]
     target = [twists[b.name] for b in system.bodies]
     for f, tj in sm.carrier_frames.items():     # a carrier moves with body_j's joint frame
-        rows.append(pin.getFrameJacobian(model, sm.data, f, pin.LOCAL_WORLD_ALIGNED))
+        rows.append(frame_jacobian(model, sm.data, f, pin.LOCAL_WORLD_ALIGNED))
         if tj.child == GROUND:
             target.append(np.zeros(6))
         else:

@@ -32,7 +32,7 @@ from mechval.reference.spatial.rotation import matrix_to_quaternion
 from mechval.reference.spatial.system import SpatialSystem
 
 from mechval.engines.pinocchio.spatial_dynamics import ALIGNED, WORLD, Kinematics, SpatialDynamics
-from mechval.engines.pinocchio.spatial_model import SpatialModel
+from mechval.engines.pinocchio.spatial_model import SpatialModel, frame_jacobian
 
 #: λ acts on the constraint's first frame with this sign (measured: the
 #: Newton–Euler residual of the passive joints vanishes with it).
@@ -101,7 +101,7 @@ def sample(sm: SpatialModel, dynamics: SpatialDynamics, system: SpatialSystem, t
         inertial = wrench(b.mass * a_G, J @ alpha + np.cross(omega, J @ omega), G)
         applied = wrench(b.mass * g, np.zeros(3), G) + solution.wrenches.get(b.name, 0.0) + on_body.get(b.name, 0.0)
         unbalanced[b.name] = inertial - applied
-        residual += pin.getFrameJacobian(model, data, f, WORLD).T @ unbalanced[b.name]
+        residual += frame_jacobian(model, data, f, WORLD).T @ unbalanced[b.name]
     residual[dynamics.drive_coordinates] -= solution.efforts
 
     for cut in sm.cuts:

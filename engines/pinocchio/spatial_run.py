@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 
-from mechval.model.kinematics import dense_grid
+from mechval.model.kinematics import STEP_RULE_GRID, dense_grid
+from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.dynamics import SpatialDynamics as ReferenceDynamics
 from mechval.reference.spatial.mechanism import spatial_solution
 from mechval.reference.spatial.rotation import cross
@@ -21,10 +22,17 @@ from mechval.reference.spatial.solver import solve_spatial
 from mechval.reference.spatial.system import SpatialSystem
 
 from mechval.engines.base import RawRun, RunInfo, RATE_RTOL
+from mechval.engines.pinocchio.adapter import RAD_PER_STEP
 from mechval.engines.pinocchio.run import steps_per_sample
 from mechval.engines.pinocchio.spatial_dynamics import SpatialDynamics, rkmk4
 from mechval.engines.pinocchio.spatial_model import build_spatial_model, start_state
 from mechval.engines.pinocchio.spatial_readout import sample
+
+
+#: A damper counts as the rate c/m·RAD_PER_STEP, so that the step rule's
+#: RAD_PER_STEP / Ω gives c/m·dt ≤ 1: a decaying mode needs stability (RK4's
+#: real bound is 2.78), not a small turn per step.
+DAMPER_RAD = RAD_PER_STEP
 
 
 def reference_start(system: SpatialSystem, t0: float) -> tuple[dict[str, pin.SE3], dict[str, np.ndarray]]:
@@ -49,12 +57,12 @@ def reference_start(system: SpatialSystem, t0: float) -> tuple[dict[str, pin.SE3
     return poses, twists
 
 
-def spatial_rate(system: SpatialSystem, times: np.ndarray) -> float:
+def spatial_rate(system: SpatialSystem, times: np.ndarray, dense: int = STEP_RULE_GRID) -> float:
     """Ω of the step rule from the reference motion on its dense grid: the
     largest over the bodies and the run of |ω|, √|α| and ∛|jerk| (the
     jerk α's finite difference), as `mechval.model.kinematics.peak_rate`
     has it for planar links."""
-    t = dense_grid(times)
+    t = dense_grid(times, dense)
     if system.forward_dynamics:
         frame = ReferenceDynamics(system, system.velocities, t0=float(t[0])).solve(t, rtol=RATE_RTOL).frame
     else:
@@ -66,6 +74,19 @@ def spatial_rate(system: SpatialSystem, times: np.ndarray) -> float:
         jerk = np.gradient(alpha, t, axis=0)
         rate = max(rate, np.linalg.norm(w, axis=1).max(), np.sqrt(np.linalg.norm(alpha, axis=1).max()),
                    np.cbrt(np.linalg.norm(jerk, axis=1).max()))
+    return float(rate)
+
+
+def force_rate(system: SpatialSystem) -> float:
+    """The fastest rate of the scene's spring-dampers on their own: √(k/m)
+    of the spring, and c/m of the damper over `DAMPER_RAD`, m the lighter
+    moving body it joins. The motion's Ω misses a stiff element whose
+    mode the motion hardly shows (A05: Ω = 31 rad/s from the motion, and
+    RK4 diverges at its step; tests/test_spatial_pinocchio.py)."""
+    rate = 0.0
+    for s in system.springs:
+        mass = min(system.body(b).mass for b in (s.body_a, s.body_b) if b != GROUND)
+        rate = max(rate, np.sqrt(s.stiffness / mass), s.damping / mass * DAMPER_RAD)
     return float(rate)
 
 

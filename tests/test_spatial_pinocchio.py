@@ -236,6 +236,38 @@ def test_fixed_joint_as_a_rigid_frame():
     assert_within(system, np.linspace(0.0, 1.0, 51))
 
 
+def rsup() -> SpatialSystem:
+    """A spatial slider-crank: crank about z (driven), a ball at its pin, a
+    rod to a universal joint on a slider guided along x at height h; the
+    slider's prismatic joint written last."""
+    a, length, h, theta = 0.1, 0.35, 0.12, 0.4
+    P = np.array([a * np.cos(theta), a * np.sin(theta), 0.0])
+    Q = np.array([a * np.cos(theta) + np.sqrt(length**2 - h**2 - (a * np.sin(theta))**2), 0.0, h])
+    pin_slider = np.array([0.0, 1.0, 0.0])
+    pin_rod = unit(np.cross(pin_slider, Q - P))
+    return SpatialSystem(
+        "RSUP", (SpatialBody("crank", 0.4, tuple(P / 2), inertia(70)),
+                 SpatialBody("rod", 0.3, tuple((P + Q) / 2), inertia(71)),
+                 SpatialBody("slider", 0.5, tuple(Q), inertia(72))),
+        (revolute("O", GROUND, "crank", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0)),
+         SpatialJoint("S", "spherical", "crank", "rod", tuple(P), tuple(P)),
+         SpatialJoint("U", "universal", "rod", "slider", tuple(Q), tuple(Q), frame_from_axis(pin_rod),
+                      frame_from_axis(pin_slider)),
+         revolute("G", GROUND, "slider", Q, (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), kind="prismatic")),
+        (SpatialDrive("O", DriveLaw(0.0, 2.0, 0.5)),), GRAVITY)
+
+
+def test_a_loop_closed_at_a_prismatic_joint_by_a_carrier(monkeypatch):
+    """With the ball ranked a tree joint, the loop's cut falls on the
+    slider's prismatic joint (written last): a carrier on a PZ from the
+    ground, welded to the slider."""
+    from mechval.engines.pinocchio import spatial_model
+    monkeypatch.setitem(spatial_model.TREE_RANK, "spherical", 1)
+    _, cuts = spatial_model.topology(rsup())
+    assert [j.name for j in cuts] == ["G"]
+    assert_within(rsup(), np.linspace(0.0, 1.0, 51))
+
+
 def test_prismatic_drive():
     system, u = sliding_body("prismatic", (0.3, -0.2, 1.0))
     driven = dataclasses.replace(system, drives=(SpatialDrive("J", DriveLaw(0.0, 0.5, -1.0)),))

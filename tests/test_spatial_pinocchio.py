@@ -268,10 +268,24 @@ def test_a_loop_closed_at_a_prismatic_joint_by_a_carrier(monkeypatch):
     assert_within(rsup(), np.linspace(0.0, 1.0, 51))
 
 
-def test_prismatic_drive():
+def test_prismatic_drive_and_damper():
+    """A body on a prismatic joint: driven; then free, damped, falling."""
     system, u = sliding_body("prismatic", (0.3, -0.2, 1.0))
     driven = dataclasses.replace(system, drives=(SpatialDrive("J", DriveLaw(0.0, 0.5, -1.0)),))
     assert_within(driven, np.linspace(0.0, 1.0, 51))
+    damped = dataclasses.replace(system, joints=(dataclasses.replace(system.joints[0], damping=2.0),),
+                                 velocities={"body": (tuple(0.3 * u), (0.0, 0.0, 0.0))})
+    assert_within(damped, np.linspace(0.0, 1.0, 51))
+
+
+def test_torque_law_in_the_tree_and_damper_at_the_cut_of_hookes_joint():
+    """Hooke's joint undriven: a torque law at R1 (a tree joint), a damper
+    at R2 (the loop's cut), from rest."""
+    system = hooke()
+    joints = tuple(dataclasses.replace(j, damping=0.05) if j.name == "R2" else j for j in system.joints)
+    free = dataclasses.replace(system, joints=joints, drives=(),
+                               torques=(JointTorque("R1", TorqueLaw("R1", 0.2, 0.1, 2.0), "motor"),))
+    assert_within(free, np.linspace(0.0, 1.0, 51))
 
 
 def test_torque_law_damper_and_load_on_the_fourbar():

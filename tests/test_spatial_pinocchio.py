@@ -335,6 +335,16 @@ def test_rkmk4_keeps_fourth_order_on_the_free_body():
     assert errors[1] / errors[0] >= 12.0, f"error ratio at double the step: {errors[1] / errors[0]:.3g}"
 
 
+def test_the_spatial_model_holds_no_effect_the_scene_lacks():
+    """No friction, damping, armature or rotor inertia in the built model
+    (every joint kind and a carrier: the delta and the RSSR)."""
+    from mechval.engines.pinocchio.spatial_model import build_spatial_model
+    for system in (Delta().system, RSSR().system):
+        model = build_spatial_model(system).model
+        for name in ("friction", "damping", "armature", "rotorInertia"):
+            assert not np.any(np.asarray(getattr(model, name))), f"{system.name}: model.{name}"
+
+
 def test_a_drive_that_closes_a_loop_of_drives_is_refused():
     """Every pin of the spherical four-bar driven: one of them must close
     the loop, and a driven joint must be a tree coordinate here."""

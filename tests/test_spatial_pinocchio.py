@@ -268,6 +268,29 @@ def test_a_loop_closed_at_a_prismatic_joint_by_a_carrier(monkeypatch):
     assert_within(rsup(), np.linspace(0.0, 1.0, 51))
 
 
+@pytest.mark.parametrize("reversed_", [False, True])
+def test_a_revolute_whose_axes_point_apart(reversed_):
+    """zj = −zi (the scene allows it): a driven crank whose frame_j is
+    built on the opposite axis, written ground → crank or crank → ground
+    (the tree then runs against the joint)."""
+    axis = unit((0.3, 0.1, 1.0))
+    frame_i, frame_j = frame_from_axis(axis, (1.0, 0.0, 0.0)), frame_from_axis(-axis, (1.0, 0.0, 0.0))
+    ends = (("crank", GROUND), (frame_j, frame_i)) if reversed_ else ((GROUND, "crank"), (frame_i, frame_j))
+    joint = SpatialJoint("O", "revolute", *ends[0], (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), *ends[1])
+    system = SpatialSystem("crank", (SpatialBody("crank", 2.0, (0.1, 0.0, 0.05), inertia(50)),), (joint,),
+                           (SpatialDrive("O", DriveLaw(0.2, 3.0, 1.5)),), GRAVITY)
+    assert_within(system, np.linspace(0.0, 1.0, 51))
+
+
+def test_a_loop_cut_at_a_revolute_whose_axes_point_apart():
+    """The spherical four-bar with D's frame_j on the opposite axis: the
+    cut's second points sit on either side to meet."""
+    m = SphericalFourBar()
+    joints = tuple(dataclasses.replace(j, frame_j=frame_from_axis(-m.w)) if j.name == "D" else j
+                   for j in m.system.joints)
+    assert_within(dataclasses.replace(m.system, joints=joints), np.linspace(0.0, 1.0, 51))
+
+
 def test_prismatic_drive_and_damper():
     """A body on a prismatic joint: driven; then free, damped, falling."""
     system, u = sliding_body("prismatic", (0.3, -0.2, 1.0))

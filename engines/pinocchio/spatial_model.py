@@ -26,6 +26,7 @@ loses mass-matrix couplings).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,25 +58,33 @@ def frame(rotation, point) -> pin.SE3:
 @dataclass(frozen=True)
 class TreeJoint:
     """A scene joint as a tree joint from `parent` to `child`: Pinocchio
-    joint `index` (0 for a fixed joint, which has none)."""
+    joint `index` (0 for a fixed joint, which has none). `flipped`: zj
+    points against zi (a revolute, cylindrical or planar joint allows it),
+    so the child's joint frame is turned by π about its x."""
 
     joint: SpatialJoint
     parent: str
     child: str
     index: int
+    flipped: bool = False
 
     @property
     def sign(self) -> float:
-        """+1 when the child is body_j (q is the scene's angle or slide)."""
-        return 1.0 if self.child == self.joint.body_j else -1.0
+        """q over the scene's angle or slide: +1 when the child is body_j,
+        or when the frames are flipped (q is then measured about zj = −zi
+        from xj to xi: the same angle)."""
+        return 1.0 if self.child == self.joint.body_j or self.flipped else -1.0
 
     def side(self, body: str) -> pin.SE3:
         """The joint frame on `body` (one of its two bodies), body axes;
-        a universal joint's child's turned so that its pin is x."""
+        a universal joint's child's turned so that its pin is x, a flipped
+        one's so that its z is the parent's."""
         j = self.joint
         placed = frame(j.frame_i, j.point_i) if body == j.body_i else frame(j.frame_j, j.point_j)
         if j.kind == "universal" and body == self.child:
             placed = placed * frame(UNIVERSAL_TURN, np.zeros(3))
+        if self.flipped and body == self.child:
+            placed = placed * frame(np.diag([1.0, -1.0, -1.0]), np.zeros(3))
         return placed
 
 
@@ -205,6 +214,12 @@ def axis(system: SpatialSystem, body: str, joint_frame: np.ndarray) -> np.ndarra
     return (np.eye(3) if body == GROUND else system.body(body).rotation) @ joint_frame[:, 2]
 
 
+def flipped(system: SpatialSystem, joint: SpatialJoint) -> bool:
+    """zj against zi at the stated pose, on a joint that allows it."""
+    return joint.kind in ("revolute", "cylindrical", "planar") and \
+        float(axis(system, joint.body_i, joint.frame_i) @ axis(system, joint.body_j, joint.frame_j)) < 0
+
+
 def build_spatial_model(system: SpatialSystem) -> SpatialModel:
     """The tree, inertias, frames, gravity and loop constraints; nothing
     else (no limits, friction, armature or damping in the model: joint
@@ -217,10 +232,10 @@ def build_spatial_model(system: SpatialSystem) -> SpatialModel:
     tree, carriers = [], {}
     for k, (role, joint, parent, child) in enumerate(edges):
         if role == "carrier":           # the cut joint itself, from body_i to a massless stand-in for body_j
-            tj = TreeJoint(joint, joint.body_i, joint.body_j, 0)
+            tj = TreeJoint(joint, joint.body_i, joint.body_j, 0, flipped(system, joint))
             index = model.addJoint(sm.joint_of[parent], native_joint(joint.kind), sm.shift[parent] * tj.side(parent),
                                    f"carrier{k}")
-            carriers[joint.name] = TreeJoint(joint, joint.body_i, joint.body_j, index)
+            carriers[joint.name] = dataclasses.replace(tj, index=index)
             model.appendBodyToJoint(index, carrier_inertia(system), pin.SE3.Identity())
             sm.carrier_frames[model.addFrame(pin.Frame(child, index, pin.SE3.Identity(), pin.FrameType.OP_FRAME))] = \
                 carriers[joint.name]
@@ -230,14 +245,14 @@ def build_spatial_model(system: SpatialSystem) -> SpatialModel:
             shift = pin.SE3.Identity()
             sm.free[index] = child
         else:
-            tj = TreeJoint(joint, parent, child, 0)
+            tj = TreeJoint(joint, parent, child, 0, flipped(system, joint))
             on_parent = sm.shift[parent] * tj.side(parent)
             if joint.kind == "fixed":
                 index, shift = sm.joint_of[parent], on_parent * tj.side(child).inverse()
             else:
                 index = model.addJoint(sm.joint_of[parent], native_joint(joint.kind), on_parent, f"j{k}")
                 shift = tj.side(child).inverse()
-            tree.append(TreeJoint(joint, parent, child, 0 if joint.kind == "fixed" else index))
+            tree.append(dataclasses.replace(tj, index=0 if joint.kind == "fixed" else index))
         body = system.body(child)
         inertia = pin.Inertia(float(body.mass), np.asarray(body.com, float), np.asarray(body.inertia, float))
         model.appendBodyToJoint(index, inertia, shift)

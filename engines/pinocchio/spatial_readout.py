@@ -117,7 +117,7 @@ def sample(sm: SpatialModel, dynamics: SpatialDynamics, system: SpatialSystem, t
             effort = efforts[tj.joint.name]
             w = w - (wrench(np.zeros(3), effort * z, child_point) if tj.joint.kind == "revolute"
                      else wrench(effort * z, np.zeros(3), child_point))
-        w = w if tj.sign > 0 else -w
+        w = w if tj.child == tj.joint.body_j else -w         # the load on body_j
         point = kin.point(tj.joint.body_j, tj.joint.point_j)[0]
         row.update(reaction_columns(tj.joint.name, *about(w, point)))
     for d, effort, sign in zip(system.drives, solution.efforts, dynamics.drive_signs):

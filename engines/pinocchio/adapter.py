@@ -33,6 +33,10 @@ Conversion of Pinocchio's native outputs to the mechval convention:
 Only in-plane force components and the z couple are reported: the model is
 planar (a point constraint's z row is redundant and its λ_z is whatever
 the proximal solver leaves, ~0).
+
+A spatial scene (`Mechanism.spatial`) runs in `spatial_run` (model,
+dynamics with its Lie-group RKMK4, read-out in the other spatial_*
+modules; docs/engines.md, "Spatial scenes").
 """
 
 from __future__ import annotations

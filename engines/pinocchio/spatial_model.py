@@ -18,10 +18,12 @@ Loops: each cut joint becomes constraints between its two bodies'
 Pinocchio joints: spherical one CONTACT_3D at the joint point; revolute
 two CONTACT_3D, at the point and one `axis_length` along the axis (six
 rows for five: the one along the axis is redundant, and the proximal
-solver copes); fixed one CONTACT_6D. Other kinds cannot close a loop here
-(`Unrepresentable`). The tree is added depth-first and `Model.check` is
-asked (engines/pinocchio/findings.py: a breadth-first tree silently
-loses mass-matrix couplings).
+solver copes); fixed one CONTACT_6D. Any other kind is the joint itself,
+from body_i to a near-massless carrier welded to body_j (CONTACT_6D,
+`CARRIER_FRACTION`). A driven joint must be a tree coordinate
+(`Unrepresentable` otherwise). The tree is added depth-first and
+`Model.check` is asked (engines/pinocchio/findings.py: a breadth-first
+tree silently loses mass-matrix couplings).
 """
 
 from __future__ import annotations

@@ -15,13 +15,14 @@ import pinocchio as pin
 
 from mechval.model.kinematics import STEP_RULE_GRID, dense_grid
 from mechval.model.mechanism import GROUND
+from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.dynamics import SpatialDynamics as ReferenceDynamics
 from mechval.reference.spatial.mechanism import spatial_solution
 from mechval.reference.spatial.rotation import cross
 from mechval.reference.spatial.solver import solve_spatial
 from mechval.reference.spatial.system import SpatialSystem
 
-from mechval.engines.base import RawRun, RunInfo, RATE_RTOL
+from mechval.engines.base import RATE_RTOL, RawRun, RunInfo, Unrepresentable
 from mechval.engines.pinocchio.adapter import RAD_PER_STEP
 from mechval.engines.pinocchio.run import steps_per_sample
 from mechval.engines.pinocchio.spatial_dynamics import SpatialDynamics, rkmk4
@@ -96,7 +97,11 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     clock = time.perf_counter()
     sm = build_spatial_model(system)
     dynamics = SpatialDynamics(sm, system, settings)
-    q, v = start_state(sm, system, *reference_start(system, float(times[0])))
+    try:
+        start = reference_start(system, float(times[0]))
+    except MechanismError as exc:           # a start the reference refuses: the scene's key and reason
+        raise Unrepresentable(exc.key, exc.reason) from None
+    q, v = start_state(sm, system, *start)
     build_time = time.perf_counter() - clock
 
     clock = time.perf_counter()

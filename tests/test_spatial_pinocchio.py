@@ -178,8 +178,8 @@ def test_bricard_a04_ten_seconds_keeps_its_energy():
     over the kinetic energy's peak, held to the velocity tolerance as
     mechval's health check of a conservative scene (`energy_drift`);
     measured 2.3e-7 J of E0 = −29.43 J, 5.1e-8 of the kinetic peak 4.55 J
-    (the reference: 3.4e-12 J), every
-    class within 8.4e-4 of its bound (about 20 s of CPU)."""
+    (the reference: 3.4e-12 J), every class within 8.4e-4 of its bound
+    (about 20 s of CPU)."""
     system = Bricard().system
     reference, run, _ = run_both(system, np.linspace(0.0, 10.0, 1001))
     found = ratios(system, reference, run)

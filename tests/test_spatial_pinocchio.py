@@ -379,6 +379,17 @@ def test_rkmk4_keeps_fourth_order_on_the_free_body():
     assert errors[1] / errors[0] >= 12.0, f"error ratio at double the step: {errors[1] / errors[0]:.3g}"
 
 
+def test_finding_massless_welded_joint_is_present():
+    """The probe measures the finding on the installed version (a release
+    that fixes it fails this test: update the finding and the carriers);
+    1e-12 kg on the joint gives the exact value, so the exact value is right."""
+    from mechval.engines.pinocchio import findings
+    measured = findings.probe_massless_welded_joint()
+    assert measured.present and measured.figure == np.inf, measured.describe()
+    read, exact = findings.welded_pendulum(carrier_mass=1e-12)
+    assert read == pytest.approx(exact, rel=1e-9)
+
+
 def test_the_spatial_model_holds_no_effect_the_scene_lacks():
     """No friction, damping, armature or rotor inertia in the built model
     (every joint kind and a carrier: the delta and the RSSR)."""

@@ -93,7 +93,9 @@ def assert_within(system, t, settings=None) -> dict[str, float]:
     found = ratios(system, reference, run)
     assert found and max(found.values()) <= 1.0, f"{system.name}: error / bound per class {found}"
     # λ's sign and the subtree sums: the drive efforts come back, the rest is 0
-    assert run.info.facts["newton_euler_residual_max"] <= 1e-6 * max(1.0, np.abs(run.frame.filter(like=".T")).max().max())
+    # (measured ≤ 1e-13, 3e-10 on the delta: its carriers' 1e-9 inertia)
+    efforts = np.abs(run.frame.filter(like=".T").to_numpy()).max(initial=1.0)
+    assert run.info.facts["newton_euler_residual_max"] <= 1e-6 * efforts
     return found
 
 

@@ -282,14 +282,14 @@ def build_spatial_model(system: SpatialSystem) -> SpatialModel:
             continue
         first, second = (joint.body_j, joint.body_i) if joint.body_i == GROUND else (joint.body_i, joint.body_j)
         sides = {joint.body_i: frame(joint.frame_i, joint.point_i), joint.body_j: frame(joint.frame_j, joint.point_j)}
-        # zj may point either way along zi: the second points meet on the assembly's side
-        along = {joint.body_i: length, joint.body_j: length * float(np.sign(axis(system, joint.body_i, joint.frame_i)
-                                                                            @ axis(system, joint.body_j, joint.frame_j)))}
+        # a revolute's second points, `length` along zi: on zj's negative side where zj points against zi
+        along = {joint.body_i: length, joint.body_j: -length if flipped(system, joint) else length}
         offsets = [0.0] + ([1.0] if joint.kind == "revolute" else [])
         kind = pin.ContactType.CONTACT_6D if joint.kind == "fixed" else pin.ContactType.CONTACT_3D
         indices = []
         for offset in offsets:
-            at = lambda body: sm.shift[body] * sides[body] * frame(np.eye(3), [0.0, 0.0, offset * along[body]])  # noqa: E731
+            def at(body: str) -> pin.SE3:
+                return sm.shift[body] * sides[body] * frame(np.eye(3), [0.0, 0.0, offset * along[body]])
             constraint = pin.RigidConstraintModel(kind, model, sm.joint_of[first], at(first),
                                                   sm.joint_of[second], at(second), pin.ReferenceFrame.LOCAL)
             constraint.name = f"{joint.name}.{len(indices)}"

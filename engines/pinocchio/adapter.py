@@ -33,6 +33,10 @@ Conversion of Pinocchio's native outputs to the mechval convention:
 Only in-plane force components and the z couple are reported: the model is
 planar (a point constraint's z row is redundant and its λ_z is whatever
 the proximal solver leaves, ~0).
+
+A spatial scene (`Mechanism.spatial`) runs in `spatial_run` (model,
+dynamics with its Lie-group RKMK4, read-out in the other spatial_*
+modules; docs/engines.md, "Spatial scenes").
 """
 
 from __future__ import annotations
@@ -44,6 +48,7 @@ import pandas as pd
 
 from mechval.adapter import FEATURES, PeakRates
 from mechval.model.mechanism import Mechanism
+from mechval.reference.spatial.system import JOINT_KINDS
 from mechval.settings import TIMESTEP, Number, Setting
 
 from mechval.engines.base import EngineAdapter, RawRun, default_step, peak_rates
@@ -87,6 +92,9 @@ class PinocchioAdapter(EngineAdapter):
     #: solver picks one of the many λ; the harness compares each body's
     #: resultant of them, which is unique).
     features = frozenset(FEATURES)
+    #: Spatial scenes (`spatial_run`): every joint kind, in the tree or
+    #: closing a loop (docs/engines.md, "Pinocchio", "Spatial scenes").
+    spatial_joints = frozenset(JOINT_KINDS)
     step_settings = ("timestep",)
     #: Nothing kept per step (RK4 keeps one state); per sample a row of
     #: raw columns: measured 31 copies of the samples × signals table at
@@ -98,9 +106,16 @@ class PinocchioAdapter(EngineAdapter):
     def default_settings(self, mechanism: Mechanism, times: np.ndarray,
                          rates: PeakRates | None = None) -> dict[str, Any]:
         """The RK4 step from the scene's peak rate (`default_step` at
-        RAD_PER_STEP); the proximal solver at PROXIMAL_*."""
+        RAD_PER_STEP; a spatial scene's Ω from its reference when the
+        harness gives none, `spatial_run.spatial_rate`); the proximal
+        solver at PROXIMAL_*."""
         if len(times) < 2:
             step = 1e-3
+        elif mechanism.spatial is not None:
+            from mechval.engines.pinocchio.spatial_run import force_rate, spatial_rate
+            rate = spatial_rate(mechanism.spatial, times) if rates is None else rates.rate
+            rate = max(rate, force_rate(mechanism.spatial))
+            step = default_step(mechanism, times, rad_per_step=RAD_PER_STEP, max_step=MAX_STEP, rate=rate)
         else:
             rates = peak_rates(mechanism, times) if rates is None else rates
             step = default_step(mechanism, times, rad_per_step=RAD_PER_STEP, max_step=MAX_STEP, rate=rates.rate)
@@ -108,9 +123,15 @@ class PinocchioAdapter(EngineAdapter):
                 "proximal_max_iterations": PROXIMAL_MAX_ITERATIONS, "baumgarte_steps": BAUMGARTE_STEPS}
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.spatial is not None:
+            from mechval.engines.pinocchio.spatial_run import run_spatial
+            return run_spatial(mechanism.spatial, np.asarray(times, dtype=float), settings)
         from mechval.engines.pinocchio.run import simulate_run
         return simulate_run(mechanism, np.asarray(times, dtype=float), settings)
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        if mechanism.spatial is not None:
+            raise NotImplementedError(f"{self.name}: no model audit of a spatial scene yet "
+                                      "(audit.py reads planar models)")
         from mechval.engines.pinocchio.audit import audit_model
         return audit_model(mechanism, times, settings)

@@ -38,7 +38,27 @@ BREADTH_FIRST_TREE = Finding(
     workaround="add the joints depth-first (mechval does, and checks Model.check(data))",
 )
 
-FINDINGS = (BREADTH_FIRST_TREE,)
+MASSLESS_WELDED_JOINT = Finding(
+    key="pinocchio.massless-welded-joint",
+    engine=ENGINE,
+    title="constraintDynamics returns NaN for a joint with no inertia, though its constraints determine it",
+    wrong=("A joint that carries no body, welded by a CONTACT_6D constraint to a body whose motion the rest "
+           "of the model determines, makes the KKT system regular (the mass matrix is positive definite on "
+           "the constraints' null space), but constraintDynamics returns NaN for every acceleration, with "
+           "no error, at any proximal μ (1e-8, 1e-4, 1e-2 and 1 measured); 1e-12 kg on the joint gives the "
+           "exact answer. A user closing a "
+           "loop through a massless intermediate frame (a universal joint's cross) gets NaN."),
+    how=("A pendulum on a ground RZ joint (1 kg, centre of mass 0.5 m along x, 0.01 kg·m² about it), a "
+         "second ground RZ joint with no body, welded to the pendulum (CONTACT_6D, LOCAL); gravity 9.81 "
+         "m/s² along −y, q = (0.3, 0.3) rad at rest, ProximalSettings(1e-12, 1e-8, 50). Exact: the "
+         "pendulum's −m·g·x_G·cos q / (I_G + m·x_G²) for both coordinates."),
+    figure="|q̈ read − q̈ exact| / |q̈ exact| of the pendulum (inf when NaN)",
+    present_above=1e-6,
+    since="4.1.0 (earliest measured)",
+    workaround="give the intermediate joint 1e-9 of the scene's inertia (mechval's spatial carriers)",
+)
+
+FINDINGS = (BREADTH_FIRST_TREE, MASSLESS_WELDED_JOINT)
 
 
 def breadth_first_chain() -> tuple[pin.Model, np.ndarray]:
@@ -75,4 +95,34 @@ def probe_breadth_first_tree() -> Measurement:
                        float(exact[0, 2]))
 
 
-PROBES = {BREADTH_FIRST_TREE.key: probe_breadth_first_tree}
+def welded_pendulum(carrier_mass: float = 0.0, q: float = 0.3) -> tuple[float, float]:
+    """MASSLESS_WELDED_JOINT's model: (the pendulum's q̈ read, exact)."""
+    mass, arm, inertia = 1.0, 0.5, 0.01
+    model = pin.Model()
+    pendulum = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "pendulum")
+    model.appendBodyToJoint(pendulum, pin.Inertia(mass, np.array([arm, 0.0, 0.0]), inertia * np.eye(3)),
+                            pin.SE3.Identity())
+    carrier = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "carrier")
+    if carrier_mass:
+        model.appendBodyToJoint(carrier, pin.Inertia(carrier_mass, np.zeros(3), carrier_mass * np.eye(3)),
+                                pin.SE3.Identity())
+    model.gravity = pin.Motion(np.array([0.0, -9.81, 0.0]), np.zeros(3))
+    weld = pin.RigidConstraintModel(pin.ContactType.CONTACT_6D, model, carrier, pin.SE3.Identity(), pendulum,
+                                    pin.SE3.Identity(), pin.ReferenceFrame.LOCAL)
+    constraints, constraint_data = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
+    constraints.append(weld)
+    constraint_data.append(weld.createData())
+    data = model.createData()
+    pin.initConstraintDynamics(model, data, constraints, constraint_data)
+    a = pin.constraintDynamics(model, data, np.array([q, q]), np.zeros(2), np.zeros(2), constraints,
+                               constraint_data, pin.ProximalSettings(1e-12, 1e-8, 50))
+    return float(a[0]), -mass * 9.81 * arm * np.cos(q) / (inertia + mass * arm**2)
+
+
+def probe_massless_welded_joint() -> Measurement:
+    read, exact = welded_pendulum()
+    figure = abs(read - exact) / abs(exact) if np.isfinite(read) else float("inf")
+    return Measurement(MASSLESS_WELDED_JOINT, importlib.metadata.version("pin"), figure, read, exact)
+
+
+PROBES = {BREADTH_FIRST_TREE.key: probe_breadth_first_tree, MASSLESS_WELDED_JOINT.key: probe_massless_welded_joint}

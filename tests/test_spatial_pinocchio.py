@@ -19,11 +19,13 @@ import pytest
 
 from mechval.adapter import PeakRates, Unrepresentable
 from mechval.model.drive import DriveLaw
+from mechval.model.kinematics import dense_grid, spatial_peak_rate
 from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.columns import body_state
 from mechval.reference.spatial.dynamics import energy
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
+from mechval.testing import SpatialContract
 from mechval.reference.spatial.rotation import frame_from_axis, quaternion_to_matrix
 from mechval.reference.spatial.system import (BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint,
                                               SpatialSystem)
@@ -39,7 +41,7 @@ except ImportError as exc:
 else:
     pytestmark = pytest.mark.engine
     from mechval.engines.pinocchio.adapter import PinocchioAdapter
-    from mechval.engines.pinocchio.spatial_run import run_spatial, spatial_rate
+    from mechval.engines.pinocchio.spatial_run import run_spatial
 
 #: Column classes: (suffixes, tolerance, absolute).
 CLASSES = {
@@ -65,7 +67,9 @@ def run_both(system: SpatialSystem, t: np.ndarray, settings: dict | None = None)
     """(reference solution, Pinocchio run, settings) at the adapter's defaults."""
     mechanism = spatial_mechanism(system)
     adapter = PinocchioAdapter()
-    rates = PeakRates(None, None, spatial_rate(system, t, RATE_GRID))
+    dense = dense_grid(t, RATE_GRID)
+    motion = mechanism.motion(dense)
+    rates = PeakRates(dense, motion, spatial_peak_rate(mechanism, motion, dense))
     settings = {**adapter.default_settings(mechanism, t, rates), **(settings or {})}
     return spatial_solution(system, t), adapter.run(mechanism, t, settings), settings
 
@@ -346,6 +350,7 @@ def test_torque_law_damper_and_load_on_the_fourbar():
     assert_within(system, np.linspace(0.0, 1.0, 51))
 
 
+@pytest.mark.slow          # ~15 s of CPU: the stiff reference and RK4 at the springs' step
 def test_flyball_governor_a05_springs():
     """A05's stiff spring-dampers (k 8e5 N/m, c 4e4 N·s/m), 20 ms: the step
     comes from the springs (`force_rate`: √(k/m) = 516 rad/s), not the
@@ -413,3 +418,7 @@ def test_a_drive_that_closes_a_loop_of_drives_is_refused():
     with pytest.raises(Unrepresentable) as refused:
         run_spatial(system, np.linspace(0.0, 0.1, 3), settings)
     assert refused.value.key == "drive.driveD"
+
+
+class TestSpatialContract(SpatialContract):
+    engine = "pinocchio"

@@ -46,7 +46,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, PeakRates
+from mechval.adapter import FEATURES, SPATIAL, PeakRates
 from mechval.model.mechanism import Mechanism
 from mechval.reference.spatial.system import JOINT_KINDS
 from mechval.settings import TIMESTEP, Number, Setting
@@ -91,7 +91,7 @@ class PinocchioAdapter(EngineAdapter):
     #: integration with no drive; redundant constraints too (the proximal
     #: solver picks one of the many λ; the harness compares each body's
     #: resultant of them, which is unique).
-    features = frozenset(FEATURES)
+    features = frozenset(FEATURES) | {SPATIAL}
     #: Spatial scenes (`spatial_run`): every joint kind, in the tree or
     #: closing a loop (docs/engines.md, "Pinocchio", "Spatial scenes").
     spatial_joints = frozenset(JOINT_KINDS)
@@ -106,15 +106,13 @@ class PinocchioAdapter(EngineAdapter):
     def default_settings(self, mechanism: Mechanism, times: np.ndarray,
                          rates: PeakRates | None = None) -> dict[str, Any]:
         """The RK4 step from the scene's peak rate (`default_step` at
-        RAD_PER_STEP; a spatial scene's Ω from its reference when the
-        harness gives none, `spatial_run.spatial_rate`); the proximal
-        solver at PROXIMAL_*."""
+        RAD_PER_STEP; a spatial scene's Ω at least its dampers' rate for
+        RK4, `spatial_run.force_rate`); the proximal solver at PROXIMAL_*."""
         if len(times) < 2:
             step = 1e-3
         elif mechanism.spatial is not None:
-            from mechval.engines.pinocchio.spatial_run import force_rate, spatial_rate
-            rate = spatial_rate(mechanism.spatial, times) if rates is None else rates.rate
-            rate = max(rate, force_rate(mechanism.spatial))
+            from mechval.engines.pinocchio.spatial_run import force_rate
+            rate = max((peak_rates(mechanism, times) if rates is None else rates).rate, force_rate(mechanism.spatial))
             step = default_step(mechanism, times, rad_per_step=RAD_PER_STEP, max_step=MAX_STEP, rate=rate)
         else:
             rates = peak_rates(mechanism, times) if rates is None else rates

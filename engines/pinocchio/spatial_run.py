@@ -1,8 +1,8 @@
 """One Pinocchio run of a spatial scene (`run_spatial`): the model built,
 the start taken from the spatial reference at the first instant, RKMK4
 from sample to sample (`spatial_dynamics`), each sample read out
-(`spatial_readout`); and the step rule's Ω of a scene the harness gave
-no peak rates for (`spatial_rate`)."""
+(`spatial_readout`); and the dampers' rate RK4's step must resolve
+(`force_rate`)."""
 
 from __future__ import annotations
 
@@ -13,16 +13,14 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 
-from mechval.model.kinematics import STEP_RULE_GRID, dense_grid
 from mechval.model.mechanism import GROUND
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.dynamics import SpatialDynamics as ReferenceDynamics
-from mechval.reference.spatial.mechanism import spatial_solution
 from mechval.reference.spatial.rotation import cross
 from mechval.reference.spatial.solver import solve_spatial
 from mechval.reference.spatial.system import SpatialSystem
 
-from mechval.engines.base import RATE_RTOL, RawRun, RunInfo, Unrepresentable
+from mechval.engines.base import RawRun, RunInfo, Unrepresentable
 from mechval.engines.pinocchio.adapter import RAD_PER_STEP
 from mechval.engines.pinocchio.run import steps_per_sample
 from mechval.engines.pinocchio.spatial_dynamics import SpatialDynamics, rkmk4
@@ -58,32 +56,13 @@ def reference_start(system: SpatialSystem, t0: float) -> tuple[dict[str, pin.SE3
     return poses, twists
 
 
-def spatial_rate(system: SpatialSystem, times: np.ndarray, dense: int = STEP_RULE_GRID) -> float:
-    """Ω of the step rule from the reference motion on its dense grid: the
-    largest over the bodies and the run of |ω|, √|α| and ∛|jerk| (the
-    jerk α's finite difference), as `mechval.model.kinematics.peak_rate`
-    has it for planar links."""
-    t = dense_grid(times, dense)
-    if system.forward_dynamics:
-        frame = ReferenceDynamics(system, system.velocities, t0=float(t[0])).solve(t, rtol=RATE_RTOL).frame
-    else:
-        frame = spatial_solution(system, t).frame
-    rate = 0.0
-    for b in system.bodies:
-        w = frame[[f"{b.name}.w{c}" for c in "xyz"]].to_numpy()
-        alpha = frame[[f"{b.name}.alpha{c}" for c in "xyz"]].to_numpy()
-        jerk = np.gradient(alpha, t, axis=0)
-        rate = max(rate, np.linalg.norm(w, axis=1).max(), np.sqrt(np.linalg.norm(alpha, axis=1).max()),
-                   np.cbrt(np.linalg.norm(jerk, axis=1).max()))
-    return float(rate)
-
-
 def force_rate(system: SpatialSystem) -> float:
     """The fastest rate of the scene's spring-dampers on their own: √(k/m)
     of the spring, and c/m of the damper over `DAMPER_RAD`, m the lighter
-    moving body it joins. The motion's Ω misses a stiff element whose
-    mode the motion hardly shows (A05: Ω = 31 rad/s from the motion, and
-    RK4 diverges at its step; tests/test_spatial_pinocchio.py)."""
+    moving body it joins: RK4's stability needs the damper's rate too,
+    which the shared step rule (`mechval.model.kinematics.spring_rate`)
+    leaves out (A05: RK4 diverges at the motion's step;
+    tests/test_spatial_pinocchio.py)."""
     rate = 0.0
     for s in system.springs:
         mass = min(system.body(b).mass for b in (s.body_a, s.body_b) if b != GROUND)

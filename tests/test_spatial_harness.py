@@ -159,3 +159,46 @@ def test_with_redundant_constraints_the_run_reports_each_bodys_resultant():
     signals = simulate(short, "reference")
     assert np.isfinite(signals.frame[wanted].to_numpy()).all()
     assert signals.missing and all("not unique" in reason for reason in signals.missing.values())
+
+
+def test_an_attitude_is_compared_up_to_the_quaternions_sign():
+    """q and −q are one attitude: an engine whose quaternion has the other
+    sign (past half a turn, where qw ≥ 0 jumps) is not off by 2, while a
+    quaternion truly off still fails."""
+    scenario = ss.scenario("rotor", ss.SpinningRotor().system(), 0.2, 21)
+    reference = simulate(scenario, "reference")
+    columns = [f"rotor.q{c}" for c in "wxyz"]
+    flipped = reference.frame.copy()
+    flipped.loc[5:, columns] *= -1.0
+    records = compare(reference, dataclasses.replace(reference, frame=flipped, source="x"), scenario.tolerance)
+    assert (records.set_index("signal").loc[columns, "max_error"] == 0).all()
+    off = reference.frame.copy()
+    off["rotor.qx"] += 2e-3
+    records = compare(reference, dataclasses.replace(reference, frame=off, source="x"), scenario.tolerance)
+    assert set(records.loc[records["verdict"] == "fail", "signal"]) == {"rotor.qx"}
+
+
+def test_moments_zero_in_theory_are_judged_against_forces_times_size():
+    """A spatial reference states its size: a rotor spun about a principal
+    axis under gravity has bearing moments zero in theory (their values
+    rounding) and forces m·g; an engine's moment of 1e-6 N·m is judged
+    against m·g times that size, not against the rounding."""
+    from mechval.reference.spatial.rotation import frame_from_axis
+    from mechval.reference.spatial.system import SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem
+    from mechval.model.drive import DriveLaw
+
+    frame = frame_from_axis((0.0, 0.0, 1.0))
+    rotor = SpatialBody("rotor", 2.0, (0.0, 0.0, 0.0), np.diag([0.01, 0.02, 0.03]))
+    bearing = SpatialJoint("bearing", "revolute", "ground", "rotor", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), frame, frame)
+    system = SpatialSystem("principal-rotor", (rotor,), (bearing,), (SpatialDrive("bearing", DriveLaw(0, 10, 0), "spin"),),
+                           gravity=(0.0, -9.81, 0.0))
+    scenario = ss.scenario("principal-rotor", system, 0.2, 21)
+    reference = simulate(scenario, "reference")
+    assert np.abs(reference.frame[["bearing.Mx", "bearing.My", "bearing.Mz", "spin.T"]].to_numpy()).max() < 1e-12
+    engine = reference.frame.copy()
+    engine["bearing.Mx"] += 1e-6
+    judged = lambda ref: compare(ref, dataclasses.replace(reference, frame=engine, source="x"), scenario.tolerance)
+    row = judged(reference).set_index("signal").loc["bearing.Mx"]
+    assert row["verdict"] == "pass" and row["bound"] >= 1e-2 * 2.0 * 9.81 * reference.info.facts["length_scale"]
+    planar_rule = dataclasses.replace(reference, info=dataclasses.replace(reference.info, facts={}))
+    assert judged(planar_rule).set_index("signal").loc["bearing.Mx", "verdict"] == "fail"

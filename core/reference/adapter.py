@@ -16,7 +16,7 @@ from mechval.model.mechanism import Mechanism
 from mechval.reference.dynamics import raw_dynamics
 from mechval.reference.newton_euler import reaction_values
 from mechval.reference.planar.solver import MechanismError, raw_planar
-from mechval.reference.spatial.mechanism import spatial_solution
+from mechval.reference.spatial.mechanism import scene_size, spatial_solution
 from mechval.reference.spatial.system import JOINT_KINDS
 
 #: Instants per chunk: bounds memory on long runs and feeds one thread each.
@@ -78,7 +78,8 @@ class ReferenceAdapter(EngineAdapter):
                 solution = spatial_solution(mechanism.spatial, times)
             except MechanismError as exc:
                 raise Unrepresentable(exc.key, exc.reason) from None
-            return RawRun(solution.frame, solution.missing, RunInfo(facts=dict(solution.facts)))
+            facts = {**solution.facts, "length_scale": scene_size(mechanism.spatial)}
+            return RawRun(solution.frame, solution.missing, RunInfo(facts=facts))
         if mechanism.forward_dynamics:
             try:
                 solution = raw_dynamics(mechanism, times)

@@ -71,3 +71,9 @@ def has_redundant_constraints(system: SpatialSystem) -> bool:
 def spatial_mechanism(system: SpatialSystem, name: str | None = None) -> Mechanism:
     return Mechanism(name=name or system.name, kind=KIND, bodies=(), joints=(), drive=None, gravity=(0.0, 0.0),
                      motion=_Motion(system), signal_map=spatial_signal_map(system), spatial=system)
+
+
+def scene_size(system: SpatialSystem) -> float:
+    """The scene's size (m): the largest distance between its bodies'
+    stated origins and joint points (`Scaling.size`)."""
+    return Scaling(Constraints(system)).size

@@ -114,12 +114,17 @@ class Unrepresentable(ValueError):
 #: joint dampers (`mechanism_features`); an adapter lists in `features`
 #: those it builds, and is refused the others before it runs.
 FEATURES = ("several drives", "a prismatic drive", "spring-dampers", "body torques", "torque laws", "free motion",
-            "redundant constraints", "spatial")
+            "redundant constraints")
+#: The feature of a spatial scene (`spatial_features`), which an adapter
+#: declares beside FEATURES, with the joint kinds it builds (`spatial_joints`).
+SPATIAL = "spatial"
 
 
 def mechanism_features(mechanism: Mechanism) -> dict[str, str]:
     """The FEATURES a mechanism uses, each with the scenario key that asks
     for it."""
+    if mechanism.spatial is not None:
+        return spatial_features(mechanism.spatial)
     used: dict[str, str] = {}
     if mechanism.extra_drives:
         used["several drives"] = "drive"
@@ -134,6 +139,26 @@ def mechanism_features(mechanism: Mechanism) -> dict[str, str]:
         used["free motion"] = "initial"
     if redundant_constraints(mechanism):        # a rank-deficient joint Jacobian, e.g. a parallelogram
         used["redundant constraints"] = "joint"
+    return used
+
+
+def spatial_features(system) -> dict[str, str]:
+    """The FEATURES of a spatial scene (`mechval.reference.spatial.system.
+    SpatialSystem`), each with its key; its joint kinds are checked apart
+    (`EngineAdapter.spatial_joints`)."""
+    used = {SPATIAL: "mechanism"}
+    if len(system.drives) > 1:
+        used["several drives"] = "drive"
+    if any(system.joint(d.joint).kind == "prismatic" for d in system.drives):
+        used["a prismatic drive"] = "drive"
+    for spring in system.springs:
+        used.setdefault("spring-dampers", f"force.{spring.name}")
+    for load in system.loads:
+        used.setdefault("body torques", f"force.{load.name}")
+    for law in system.torques:
+        used.setdefault("torque laws", f"torque.{law.name}")
+    if system.forward_dynamics:
+        used["free motion"] = "initial"
     return used
 
 
@@ -215,6 +240,8 @@ class EngineAdapter(ABC):
         cannot be derived (Unrepresentable: the step rule of a torque-driven
         or free scene integrates its motion, which may leave float64's
         range) is refused as a ScenarioError naming the file and key."""
+        if mechanism.spatial is not None and "spatial" not in self.features:
+            return {}           # refused before it runs (`Plan.refuse_unbuilt_features`)
         try:
             if self.uses_peak_rates and rates is not None:
                 return self.default_settings(mechanism, scenario.time.t, rates=rates)

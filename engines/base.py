@@ -22,6 +22,7 @@ from mechval.reference.dynamics import RTOL, raw_dynamics
 from mechval.model.kinematics import dense_grid, peak_rate
 from mechval.model.mechanism import Mechanism
 from mechval.reference.planar.constraints import MechanismError
+from mechval.reference.spatial.mechanism import spatial_solution
 
 #: The forward-dynamics reference's tolerance where only a run's peak rates
 #: and forces are needed (`planned_motion`: the step rule, force scales, the
@@ -66,6 +67,8 @@ def reference_motion(mechanism: Mechanism, t: np.ndarray, rtol: float = RTOL) ->
 
     def integrate() -> pd.DataFrame:
         try:
+            if mechanism.spatial is not None:      # integrated at the spatial reference's own tolerance
+                return spatial_solution(mechanism.spatial, t).frame
             return raw_dynamics(mechanism, t, rtol=rtol).frame
         except MechanismError as exc:
             raise Unrepresentable(exc.key, exc.reason) from None
@@ -81,7 +84,7 @@ def planned_motion(mechanism: Mechanism) -> Mechanism:
     the forward-dynamics reference at RATE_RTOL. Each call of its `motion`
     solves anew: the harness asks for the step rule's grid once per scene
     (`peak_rates`)."""
-    if not mechanism.forward_dynamics:
+    if not mechanism.forward_dynamics or mechanism.spatial is not None:
         return mechanism
     return dataclasses.replace(
         mechanism, motion=lambda t: reference_motion(mechanism, np.asarray(t, dtype=float), RATE_RTOL))

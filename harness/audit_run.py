@@ -8,6 +8,7 @@ from __future__ import annotations
 import time
 from typing import Any, Iterable, Mapping
 
+from mechval.adapter import SPATIAL
 from mechval.records.audit import AuditResult, format_audit
 from mechval.engines.registry import adapter
 from mechval.model.scenario import Scenario
@@ -27,6 +28,8 @@ def audit_scenario(scenario: Scenario | Plan, engine: str, overrides: Mapping[st
     plan = planned(scenario, [] if settings is not None else [engine_adapter])
     scenario, mechanism = plan.scenario, plan.mechanism
     settings = dict(settings) if settings is not None else plan.settings(engine_adapter, overrides)
+    if mechanism.spatial is not None and SPATIAL not in engine_adapter.features:
+        return AuditResult(scenario.name, engine, error=f"{engine}: its adapter does not build spatial scenes")
     start = time.perf_counter()
     try:
         table = engine_adapter.audit(mechanism, scenario.time.t, settings)

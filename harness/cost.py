@@ -97,10 +97,13 @@ def points_for(scene: Scenario | Plan, engine: str, quick: bool = False) -> list
     scenario, as interval / k), each with its resolved settings. Quick: the
     default variant at the default step and one ~10× coarser. An adapter
     with no time step (`step_setting` empty) has one point: its defaults.
-    The ladder's Ω is the plan's peak rates (`PeakRates.rate`)."""
+    The ladder's Ω is the plan's peak rates (`PeakRates.rate`). An engine
+    that declares it cannot build the scene has no points."""
     adapter_ = adapter(engine)
     plan = planned(scene, [adapter_])
     scenario = plan.scenario
+    if plan.refusal(adapter_):      # declared up front: no points (the run's table says why)
+        return []
     if not adapter_.step_setting:
         return [Task(scenario, engine, "default", {}, settings=plan.settings(adapter_), default=True)]
     times = scenario.time.t

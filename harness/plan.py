@@ -73,6 +73,15 @@ class Plan:
         """The values of `resolved`."""
         return dict(self.resolved(engine, overrides).values)
 
+    def refusal(self, engine_adapter: EngineAdapter | str) -> str:
+        """Why the adapter declares it cannot build this scene (key and
+        reason of `refuse_unbuilt_features`), or ""."""
+        try:
+            self.refuse_unbuilt_features(adapter(engine_adapter) if isinstance(engine_adapter, str) else engine_adapter)
+        except ScenarioError as exc:
+            return f"{exc.key}: {exc.reason}"
+        return ""
+
     def refuse_unbuilt_features(self, engine_adapter: EngineAdapter) -> None:
         """A ScenarioError naming the file and key of the first feature of
         the scene the adapter does not build (`mechanism_features`)."""
@@ -81,6 +90,11 @@ class Plan:
                 why = engine_adapter.feature_limits.get(feature)
                 raise ScenarioError(self.scenario.source, key, f"{engine_adapter.name}: " + (
                     f"cannot run {feature}: {why}" if why else f"its adapter does not build {feature} yet"))
+        for joint in self.mechanism.spatial.joints if self.mechanism.spatial is not None else ():
+            if joint.kind not in engine_adapter.spatial_joints:
+                raise ScenarioError(self.scenario.source, self.scenario.key(f"joint.{joint.name}.kind"),
+                                    f"{engine_adapter.name}: its adapter does not build {joint.kind} joints "
+                                    f"(it builds: {', '.join(sorted(engine_adapter.spatial_joints)) or 'none'})")
 
 
 def prepare(scenario: Scenario, engines: Iterable[EngineAdapter | str] = ()) -> Plan:

@@ -100,7 +100,7 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
             import_engines(engines)
         plans = prepared_on(executor, chosen, engines)      # each scene prepared once for every phase
         tasks = tasks_for(plans, engines)
-        check_runs([(t.scenario, t.engine, t.settings) for t in tasks], limits)
+        check_runs([(t.scenario, t.engine, t.settings) for t in tasks if not t.refused], limits)
         if cost:
             check_runs([(t.scenario, t.engine, t.settings) for plan in plans for e in engines
                         for t in points_for(plan, e)], limits)
@@ -133,7 +133,8 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
                 for outcome in waiting.pop(name, []):
                     compared[id(outcome.task)] = outcome_records(outcome, arrived[name])
 
-        jobs = [functools.partial(scene_job, plan.scenario, {e: plan.settings(e) for e in engines}) for plan in plans]
+        jobs = [functools.partial(scene_job, plan.scenario, {e: plan.settings(e) for e in engines if not plan.refusal(e)})
+                for plan in plans]
         outcomes, side = run_alongside(tasks, jobs + [functools.partial(measure_findings, engines)], executor, done,
                                        on_job=job_done)
     with phase("comparison"):

@@ -56,6 +56,10 @@ def tasks_for(scenarios: Iterable[Scenario | Plan], engines: Iterable[str]) -> l
         scenario = plan.scenario
         for engine in engines:
             engine_adapter = adapter(engine)
+            refused = plan.refusal(engine_adapter)
+            if refused:         # declared up front: a row that says so, not a failed run
+                tasks.append(Task(scenario, engine, refused=refused))
+                continue
             variants = engine_adapter.variants
             if "hard" in scenario.tags:
                 variants = {"default": variants["default"]}
@@ -96,7 +100,9 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
     runs, the most steps first: no long run is left to finish alone while
     the other workers idle. The outcomes in the tasks' order, and one
     Done per job, its value (what the job returned, its worker's CPU time
-    in s); on_job(index, done) as each job ends."""
+    in s); on_job(index, done) as each job ends. A task the engine
+    refused up front (`Task.refused`) is not run: its outcome is the
+    refusal."""
     def outcome(task: Task, done: Done) -> Outcome:
         if done.error:
             return Outcome(task, None, done.error, worker=done.worker)
@@ -104,7 +110,10 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
         return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time,
                        sensitivity=sensitivity[0] if sensitivity else None, worker=done.worker)
 
-    order = longest_first(tasks)
+    for task in tasks:
+        if task.refused:
+            on_done(Outcome(task, None, task.refused))
+    order = [k for k in longest_first(tasks) if not tasks[k].refused]
     items = [functools.partial(_timed, job) for job in jobs] + [functools.partial(body, tasks[k]) for k in order]
 
     def done(index: int, result: Done) -> None:
@@ -115,7 +124,8 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
 
     results = executor.run(_call, items, done)
     in_task_order = dict(zip(order, results[len(jobs):]))
-    return [outcome(task, in_task_order[k]) for k, task in enumerate(tasks)], results[:len(jobs)]
+    return [Outcome(task, None, task.refused) if task.refused else outcome(task, in_task_order[k])
+            for k, task in enumerate(tasks)], results[:len(jobs)]
 
 
 def prepared_on(executor: Executor, scenarios: Sequence[Scenario], engines: Sequence[str]) -> list[Plan]:
@@ -193,6 +203,11 @@ def outcome_records(outcome: Outcome, reference: Signals | None) -> pd.DataFrame
     """The discrepancy records of one outcome (`reference`: its scene's;
     None only for a failed run, which is one row)."""
     task = outcome.task
+    if task.refused:
+        row = dict.fromkeys(COLUMNS)
+        row.update(scenario=task.scenario.name, engine=task.engine, setting=task.setting, signal="(run)",
+                   verdict="missing", reason=f"not built: {task.refused}", missing=0)
+        return pd.DataFrame([row], columns=COLUMNS)
     if outcome.signals is None:
         row = dict.fromkeys(COLUMNS)
         row.update(scenario=task.scenario.name, engine=task.engine, setting=task.setting, signal="(run)",

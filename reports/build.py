@@ -77,6 +77,8 @@ def _cell(records: pd.DataFrame) -> dict:
     if records.empty:
         return dict(text="—", css="missing", title="not run")
     run_failed = records["signal"].eq("(run)").any()
+    if run_failed and (records["verdict"] == "missing").all():      # declared up front (`Task.refused`)
+        return dict(text="not built", css="missing", title=records["reason"].iloc[0])
     if run_failed:
         reason = records["reason"].iloc[0]
         return dict(text="run failed", css="bad", title=reason)
@@ -164,6 +166,11 @@ def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta:
             lines.append(f"| {md_cell(r['scenario'])} | {md_cell(r['engine'])} | {md_cell(r['setting'])} | "
                          f"{md_cell(r['signal'])} | {_fmt(r['max_error'])} | {_fmt(r['ratio'])} | "
                          + " | ".join(_fmt(r.get(c)) for c in GROWTH_COLUMNS) + f" | {md_cell(r['reason'] or '')} |")
+    refused = records[records["signal"].eq("(run)") & records["verdict"].eq("missing")]
+    if not refused.empty:
+        lines += ["", "## Not built (declared by the adapter)", "", "| scenario | engine | reason |", "|---|---|---|"]
+        lines += [f"| {md_cell(r['scenario'])} | {md_cell(r['engine'])} | {md_cell(r['reason'])} |"
+                  for _, r in refused.iterrows()]
     integrated = {s.name: reference_method(references[s.name]) for s in scenarios
                   if references and s.name in references and "integrator" in references[s.name].info.facts}
     if integrated:

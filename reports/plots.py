@@ -31,9 +31,13 @@ from mechval.model.kinematics import point_position, rotate
 from mechval.model.mechanism import GROUND, Mechanism, SpringDamper
 from mechval.records.signals import SIGNAL_CLASS, Signals
 
+from .spatial_plots import spatial_figure
+
 UNITS = {"angle": "rad", "position": "m", "velocity": "m/s", "acceleration": "m/s²", "force": "N", "torque": "N·m"}
 #: Units of a body's rates (theta2, omega2, B.alpha: the quantity after the last dot).
 ANGULAR_UNITS = {"velocity": "rad/s", "acceleration": "rad/s²"}
+#: A spatial body's attitude quaternion's components (no unit).
+QUATERNION = ("qw", "qx", "qy", "qz")
 #: Windows a long run is thinned to (min and max of each): about as many
 #: as a plot is pixels wide, so the thinned trace looks like the full one.
 DISPLAY_WINDOWS = 500
@@ -162,7 +166,10 @@ class _Stream:
 
 def unit(signal: str) -> str:
     cls = SIGNAL_CLASS[signal]
-    angular = signal.rpartition(".")[2].startswith(("omega", "alpha"))
+    quantity = signal.rpartition(".")[2]
+    if quantity in QUATERNION:
+        return "1"
+    angular = quantity.startswith(("omega", "alpha")) or quantity in ("wx", "wy", "wz")
     return ANGULAR_UNITS[cls] if angular and cls in ANGULAR_UNITS else UNITS[cls]
 
 
@@ -248,6 +255,8 @@ def mechanism_figure(mech: Mechanism, times: np.ndarray, instants: int = 4) -> d
     as the polygon of its joint points (closed for a ternary or larger
     link), ground pivots as triangles, guides as dashed lines, springs as
     dotted lines."""
+    if mech.spatial is not None:
+        return spatial_figure(mech, times, instants)
     # Instants of the run's own samples: a torque-driven or free scene's
     # motion on them is the reference's run, already integrated.
     rows = np.unique(np.linspace(0, len(times) - 1, instants).round().astype(int))

@@ -21,7 +21,9 @@ def _cell(records: pd.DataFrame) -> dict:
     if records.empty:
         return dict(verdict="not run", css="missing", figures=[])
     if records["signal"].eq("(run)").any():
-        return dict(verdict="run failed: " + str(records["reason"].iloc[0]), css="bad", figures=[])
+        refused = (records["verdict"] == "missing").all()       # declared up front (`Task.refused`)
+        return dict(verdict=("" if refused else "run failed: ") + str(records["reason"].iloc[0]),
+                    css="missing" if refused else "bad", figures=[])
     health = records.set_index("signal")
     figures = []
     for signal, name, unit in FIGURES:

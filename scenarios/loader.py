@@ -17,6 +17,7 @@ from mechval.model.scenario import Scenario, ScenarioError
 
 from .kinds import parse_kind
 from .planar import parse_planar
+from .spatial import parse_spatial
 from .tables import MAX_MAGNITUDE
 
 HERE = Path(__file__).resolve().parent
@@ -99,11 +100,14 @@ def parse(data: Mapping[str, Any], source: str | Path | None = None,
     """Validate a parsed TOML document into a `Scenario` (SI units), by the
     front end its `mechanism` names: a planar file's scene as written
     (docs/scenario-format.md#planar-files), or a closed-form kind's scene
-    expanded from its few numbers.
+    expanded from its few numbers, or a spatial file's
+    (docs/scenario-format.md#spatial-files).
 
     `engines`: the engine names an `[engines.NAME]` table may name (the
     harness passes its registry's); None accepts any name, and an adapter
     still refuses settings it does not know."""
     if data.get("mechanism") == "planar":
         return parse_planar(data, source, engines)
+    if data.get("mechanism") == "spatial":
+        return parse_spatial(data, source, engines)
     return parse_kind(data, source, engines)

@@ -36,7 +36,7 @@ def scenario_name(top: "Reader") -> str:
 
 
 #: The formats a file's `mechanism` may name.
-MECHANISMS = (*LINKAGES, "planar")
+MECHANISMS = (*LINKAGES, "planar", "spatial")
 
 
 def heading(top: "Reader") -> tuple[str, str, str, tuple[str, ...]]:

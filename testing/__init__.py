@@ -6,6 +6,8 @@ adapter", and docs/testing.md):
 - `PlanarContract`: the planar scenes' contract (several drives, slides
   between moving links, spring-dampers, body torques, six-bars, …) as
   one more class to subclass;
+- `SpatialContract`: the spatial scenes' contract (gravity and reactions
+  in 3-D, a spherical joint, gyroscopic moments, a free body's momentum);
 - `engine_or_skip(name)`: an adapter, or skip the test with the reason;
 - `compare_with_reference(scene, engine, overrides)`: a `Comparison`
   (records, signals, reference) of one engine run against the reference;
@@ -26,6 +28,7 @@ import importlib
 _MODULES = {
     "AdapterContract": "contract",
     "PlanarContract": "planar_contract",
+    "SpatialContract": "spatial_contract",
     "engine_or_skip": "comparison",
     "compare_with_reference": "comparison",
     "Comparison": "comparison",

@@ -129,6 +129,9 @@ def peak_of(values) -> float:
 
 def health(mech: Mechanism, raw: pd.DataFrame, missing: Mapping[str, str] = ()) -> pd.DataFrame:
     """Health columns (HEALTH_COLUMNS) at every sample of an engine's raw run."""
+    if mech.spatial is not None:
+        from mechval.judging.spatial_health import spatial_health     # it imports this module
+        return spatial_health(mech.spatial, raw, missing)
     t = raw["t"].to_numpy()
     columns = [c for c in mech.motion_columns() + mech.reaction_columns() if c in raw and c not in missing]
     values = raw[columns].to_numpy(dtype=float)

@@ -185,11 +185,25 @@ def dense_grid(times: np.ndarray, dense: int = STEP_RULE_GRID) -> np.ndarray:
 
 
 def peak_rate(mechanism: Mechanism, motion: Mapping, t: np.ndarray) -> float:
-    """Ω of `step_rate` from the motion at the instants t."""
+    """Ω of `step_rate` from the motion at the instants t (a spatial
+    body's |ω|, |α| and |jerk| are the vectors' norms)."""
+    if mechanism.spatial is not None:
+        return spatial_peak_rate(mechanism, motion, t)
     rate = 0.0
     for body in mechanism.bodies:
         w = np.asarray(motion[f"{body.name}.omega"], dtype=float)
         al = np.asarray(motion[f"{body.name}.alpha"], dtype=float)
         jerk = np.gradient(al, t)
         rate = max(rate, np.abs(w).max(), np.sqrt(np.abs(al).max()), np.cbrt(np.abs(jerk).max()))
+    return float(rate)
+
+
+def spatial_peak_rate(mechanism: Mechanism, motion: Mapping, t: np.ndarray) -> float:
+    rate = 0.0
+    for body in mechanism.spatial.bodies:
+        w = np.stack([np.asarray(motion[f"{body.name}.w{c}"], dtype=float) for c in "xyz"], axis=1)
+        al = np.stack([np.asarray(motion[f"{body.name}.alpha{c}"], dtype=float) for c in "xyz"], axis=1)
+        jerk = np.gradient(al, t, axis=0)
+        rate = max(rate, np.linalg.norm(w, axis=1).max(), np.sqrt(np.linalg.norm(al, axis=1).max()),
+                   np.cbrt(np.linalg.norm(jerk, axis=1).max()))
     return float(rate)

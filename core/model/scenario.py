@@ -128,8 +128,11 @@ class Scenario:
 
     @property
     def mechanism(self) -> str:
-        """The file's `mechanism`: the closed form's kind, or "planar"."""
-        return self.closed_form.kind if self.closed_form else "planar"
+        """The file's `mechanism`: the closed form's kind, "planar", or
+        "spatial" (a `SpatialSystem` scene, `mechval.scenarios.spatial`)."""
+        if self.closed_form:
+            return self.closed_form.kind
+        return "planar" if isinstance(self.scene, Scene) else "spatial"
 
     @property
     def forward_dynamics(self) -> bool:

@@ -38,6 +38,9 @@ class Task:
     step: float = math.nan
     #: Whether a cost sweep's point is the engine's default setting.
     default: bool = False
+    #: Why the engine declares it cannot build the scene (`Plan.refusal`):
+    #: such a task is not run; its one record says so, verdict "missing".
+    refused: str = ""
 
     @property
     def label(self) -> str:

@@ -71,7 +71,13 @@ PLANAR_CLASS = {"theta": "angle", "omega": "velocity", "alpha": "acceleration",
                 "x": "position", "y": "position", "vx": "velocity", "vy": "velocity",
                 "ax": "acceleration", "ay": "acceleration",
                 "Fx": "force", "Fy": "force", "N": "force", "M": "torque", "T": "torque", "F": "force",
-                "Rx": "force", "Ry": "force", "Rm": "torque"}
+                "Rx": "force", "Ry": "force", "Rm": "torque",
+                # spatial scenes (docs/conventions.md, "Spatial signals"): a
+                # quaternion component's error is about half the turn's (rad)
+                "z": "position", "vz": "velocity", "az": "acceleration",
+                **{f"q{c}": "angle" for c in "wxyz"}, **{f"w{c}": "velocity" for c in "xyz"},
+                **{f"alpha{c}": "acceleration" for c in "xyz"},
+                "Fz": "force", "Mx": "torque", "My": "torque", "Mz": "torque"}
 
 #: Tolerance class of each signal (keys of a scenario's [tolerance] table).
 SIGNAL_CLASS = SignalClasses({

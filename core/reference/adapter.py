@@ -11,11 +11,13 @@ import numpy as np
 import pandas as pd
 
 from mechval import __version__
-from mechval.adapter import FEATURES, EngineAdapter, RawRun, RunInfo, Unrepresentable
+from mechval.adapter import FEATURES, SPATIAL, EngineAdapter, RawRun, RunInfo, Unrepresentable
 from mechval.model.mechanism import Mechanism
 from mechval.reference.dynamics import raw_dynamics
 from mechval.reference.newton_euler import reaction_values
 from mechval.reference.planar.solver import MechanismError, raw_planar
+from mechval.reference.spatial.mechanism import spatial_solution
+from mechval.reference.spatial.system import JOINT_KINDS
 
 #: Instants per chunk: bounds memory on long runs and feeds one thread each.
 CHUNK = 1 << 17
@@ -60,7 +62,8 @@ class ReferenceAdapter(EngineAdapter):
     step_settings = ()
     output_copies = 8
     bytes_per_step = 0
-    features = frozenset(FEATURES)
+    features = frozenset(FEATURES) | {SPATIAL}
+    spatial_joints = frozenset(JOINT_KINDS)
 
     @classmethod
     def version(cls) -> str:
@@ -70,6 +73,12 @@ class ReferenceAdapter(EngineAdapter):
         return {}
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.spatial is not None:
+            try:
+                solution = spatial_solution(mechanism.spatial, times)
+            except MechanismError as exc:
+                raise Unrepresentable(exc.key, exc.reason) from None
+            return RawRun(solution.frame, solution.missing, RunInfo(facts=dict(solution.facts)))
         if mechanism.forward_dynamics:
             try:
                 solution = raw_dynamics(mechanism, times)

@@ -29,6 +29,8 @@ from mechval.model.mechanism import Drive, Mechanism
 from mechval.reference.planar.scene import SolvedMotion, has_redundant_constraints
 from mechval.reference.planar.solver import default_pose
 from mechval.reference.resultants import RESULTANT_SIGNALS
+from mechval.reference.spatial.mechanism import spatial_mechanism
+from mechval.reference.spatial.system import SpatialSystem
 from mechval.model.scenario import Scenario
 from mechval.model.scene import signal_map as scene_signal_map
 
@@ -84,8 +86,9 @@ class ClosedForm:
 def build_mechanism(scenario: Scenario) -> Mechanism:
     """The generic `Mechanism` of a validated scenario, from its scene. The
     harness builds each scene's once per run (`mechval.harness.plan`)."""
-    mechanism = _built(scenario)
-    return mechanism
+    if isinstance(scenario.scene, SpatialSystem):
+        return spatial_mechanism(scenario.scene, scenario.name)
+    return _built(scenario)
 
 
 def _built(scenario: Scenario) -> Mechanism:

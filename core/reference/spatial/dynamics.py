@@ -7,7 +7,9 @@ M·ẇ + Φqᵀ·λ = Q (`forces`) with the joints' rows and any drives', and
 Φq·ẇ = γ; solved at every evaluation as one square system in (ẇ, λ)
 with the independent rows only (`structure`), so redundant rows cost
 nothing. The state integrated by scipy's DOP853 (Hairer, Nørsett &
-Wanner, *Solving ODEs I*, §II.10) is per body G, its unit quaternion
+Wanner, *Solving ODEs I*, §II.10), or for stiff force elements its Radau
+IIA (implicit, order 5; *Solving ODEs II*, §IV.8) with a Jacobian by
+batched forward differences, is per body G, its unit quaternion
 p (ṗ = ½·(0, ω) ⊗ p, no singular attitude), Ġ and ω; the quaternion is
 normalised where it is read. The constraints are integrated at the
 acceleration level, so positions and velocities drift from them by the
@@ -32,11 +34,19 @@ from mechval.reference.spatial.system import SpatialSystem
 
 RTOL = 1e-12
 ATOL = 1e-14
-METHOD = "DOP853 on (G, quaternion, Ġ, ω), constraints at the acceleration level (Nikravesh 1988, §11.6)"
+METHODS = {
+    "DOP853": "DOP853 on (G, quaternion, Ġ, ω), constraints at the acceleration level (Nikravesh 1988, §11.6)",
+    "Radau": "Radau IIA (order 5, implicit) on (G, quaternion, Ġ, ω), constraints at the acceleration level "
+             "(Nikravesh 1988, §11.6; Hairer & Wanner, Solving ODEs II, §IV.8)",
+}
+#: Forward-difference step of the implicit method's Jacobian, relative to
+#: each state component (at least FD_FLOOR): about √ε.
+FD_STEP, FD_FLOOR = 1e-7, 1e-3
 
 
 def energy(system: SpatialSystem, pose: Pose, w: np.ndarray) -> np.ndarray:
-    """Kinetic plus gravitational plus spring potential energy (J), per instant."""
+    """Kinetic plus gravitational energy (J), per instant (springs' energy is
+    the caller's: `Spring` has its length and stiffness)."""
     J = world_inertia(system, pose)
     g = np.asarray(system.gravity, dtype=float)
     total = np.zeros(len(pose))
@@ -109,24 +119,42 @@ class SpatialDynamics:
         return Pose(G, quaternion_to_matrix(p)), w
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        self.evaluations += 1
+        return self._rates(t, y[None])[0]
+
+    def _rates(self, t: float, Y: np.ndarray) -> np.ndarray:
+        """ẏ at states Y (N, 13·nb), all at time t, in one batched solve."""
+        self.evaluations += len(Y)
         nb = len(self.system.bodies)
-        pose, w = self._unpack(y[None])
-        dw, _ = self.accelerations(pose, w, np.array([t]))
-        p = y[3 * nb:7 * nb].reshape(nb, 4)
-        p = p / np.linalg.norm(p, axis=1, keepdims=True)
-        return np.concatenate([w[0, :, :3].ravel(), quaternion_rate(p, w[0, :, 3:]).ravel(), dw[0].ravel()])
+        pose, w = self._unpack(Y)
+        dw, _ = self.accelerations(pose, w, np.full(len(Y), t))
+        p = Y[:, 3 * nb:7 * nb].reshape(len(Y), nb, 4)
+        p = p / np.linalg.norm(p, axis=2, keepdims=True)
+        return np.concatenate([w[:, :, :3].reshape(len(Y), -1), quaternion_rate(p, w[:, :, 3:]).reshape(len(Y), -1),
+                               dw.reshape(len(Y), -1)], axis=1)
+
+    def _jacobian(self, t: float, y: np.ndarray) -> np.ndarray:
+        """∂ẏ/∂y by forward differences, every column in one batched call
+        (the implicit method's Newton matrix; its accuracy sets how fast
+        Newton converges, not the solution's)."""
+        h = FD_STEP * np.maximum(np.abs(y), FD_FLOOR)
+        F = self._rates(t, np.vstack([y, y + np.diag(h)]))
+        return ((F[1:] - F[0]) / h[:, None]).T
 
     def initial_vector(self) -> np.ndarray:
         w, p = self.w0[0], matrix_to_quaternion(self.pose0.A[0])
         return np.concatenate([self.pose0.G[0].ravel(), p.ravel(), w.ravel()])
 
-    def solve(self, t: np.ndarray, rtol: float = RTOL, atol: float = ATOL) -> SpatialSolution:
+    def solve(self, t: np.ndarray, rtol: float = RTOL, atol: float = ATOL, method: str = "DOP853") -> SpatialSolution:
+        """The motion at instants t, integrated by `method`: "DOP853"
+        (explicit, the default) or "Radau" (implicit, order 5, for stiff
+        force elements, with `_jacobian`)."""
+        if method not in METHODS:
+            raise MechanismError("method", f"unknown integrator {method!r} (known: {', '.join(METHODS)})")
         t = np.asarray(t, dtype=float)
         if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) <= 0) or t[0] != self.t0:
             raise MechanismError("time", "instants must be finite, increasing and start at the initial state's")
-        run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method="DOP853", t_eval=t,
-                        rtol=rtol, atol=atol)
+        run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method=method, t_eval=t,
+                        rtol=rtol, atol=atol, **({"jac": self._jacobian} if method == "Radau" else {}))
         if run.status != 0:
             raise MechanismError("time", f"the integration stopped: {run.message}")
         pose, w = self._unpack(run.y.T)
@@ -139,7 +167,7 @@ class SpatialDynamics:
         state = State(t, pose, w, dw, lam, out["jac"], tuple(self.rows))
         frame, missing = self.solver.frame_of(state, self.found)
         E = energy(self.system, pose, w)
-        facts = {"method": METHOD, "rtol": rtol, "atol": atol, "steps": int(run.t.size),
+        facts = {"method": METHODS[method], "rtol": rtol, "atol": atol, "steps": int(run.t.size),
                  "evaluations": self.evaluations, "constraint_drift_max": float(drift_q),
                  "velocity_drift_max": float(drift_v), "energy_change_max": float(np.abs(E - E[0]).max()),
                  "mobility": self.found.mobility, "redundant_constraints": self.found.redundant}

@@ -57,6 +57,9 @@ SINGULAR_CONDITION = 1e10
 #: this gets its rows picked afresh (the full Jacobian may be well
 #: conditioned there: Bennett's linkage folding at θ1 = π).
 REPICK_CONDITION = 1e3
+#: Most continuation nodes one run may take (as the planar reference's
+#: `positions.MAX_STEPS`): a run longer than this is refused naming time.end.
+MAX_NODES = 30_000
 METHOD = "absolute coordinates, rotations on the group, Newton continuation, multipliers (Nikravesh 1988, Haug 1989)"
 RESULTANT = ("R.Fx", "R.Fy", "R.Fz", "R.Mx", "R.My", "R.Mz")
 
@@ -138,6 +141,9 @@ class SpatialSolver:
         h = (t_end - t0) / 16 if t_end > t0 else 0.0
         while nodes[-1].t[0] < t_end:
             last = nodes[-1]
+            if len(nodes) > MAX_NODES:
+                raise MechanismError("time.end", f"the reference's continuation reached only t = {last.t[0]:.6g} s "
+                                                 f"of {t_end:g} s in {MAX_NODES:,} steps, the limit; shorten time.end")
             step = min(h, t_end - last.t[0])
             t = last.t + step
             predicted = predict(last, t)
@@ -159,6 +165,14 @@ class SpatialSolver:
             if jump < NODE_JUMP / 10:
                 h = step * 1.5
         return nodes
+
+    def check(self, t0: float, t_end: float) -> Structure:
+        """Assemble at t0 and follow the motion to t_end (the continuation
+        alone, no batch): raises MechanismError where `solve` would for
+        want of mobility, assembly or closure (the scenario loader's check)."""
+        pose, found = self.assemble(t0)
+        self._march(pose, found, t0, t_end)
+        return found
 
     def solve(self, t: np.ndarray) -> SpatialSolution:
         t = np.asarray(t, dtype=float)

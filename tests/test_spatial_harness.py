@@ -1,0 +1,116 @@
+"""A spatial scene through the harness: its mechanism, its reference run,
+health and signal classes, and the refusals of adapters that do not build
+it (`mechval.reference.spatial.mechanism`, `mechval.judging.spatial_health`)."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mechval.harness.simulate import simulate
+from mechval.judging.compare import compare
+from mechval.model.scenario import ScenarioError
+from mechval.records.signals import SIGNAL_CLASS
+from mechval.reference.adapter import ReferenceAdapter
+from mechval.reference.linkages import build_mechanism
+from mechval.testing import spatial_scenes as ss
+
+ROUNDING = 1e-12
+
+
+def test_a_spatial_scenario_becomes_a_spatial_mechanism():
+    scenario = ss.scenario("rotor", ss.SpinningRotor().system(), 0.2, 21)
+    mech = build_mechanism(scenario)
+    assert mech.kind == "spatial" and mech.spatial is scenario.scene and not mech.forward_dynamics
+    assert list(mech.signal_map) == mech.spatial.motion_columns() + mech.spatial.reaction_columns()
+
+
+def test_every_spatial_signal_has_a_tolerance_class():
+    system = ss.SpinningRotor().system()
+    classes = {name: SIGNAL_CLASS[name] for name in system.motion_columns() + system.reaction_columns()}
+    assert classes["rotor.qw"] == "angle" and classes["rotor.wz"] == "velocity"
+    assert classes["rotor.alphax"] == "acceleration" and classes["bearing.Mz"] == "torque"
+    assert classes["bearing.Fz"] == "force" and classes["spin.T"] == "torque" and classes["rotor.z"] == "position"
+
+
+@pytest.mark.parametrize("case", ["rotor", "brick"])
+def test_the_reference_run_is_healthy(case):
+    """The reference's own run: its joints closed, its drive followed, a
+    free body's energy kept, to rounding (or the integration's 1e-12)."""
+    system = ss.SpinningRotor().system() if case == "rotor" else ss.FreeBrick().system()
+    signals = simulate(ss.scenario(case, system, 0.5), "reference")
+    health = signals.health
+    assert health["nonfinite"].max() == 0
+    assert health["constraint_drift"].max() <= ROUNDING
+    if case == "rotor":
+        assert health["drive_error"].max() <= ROUNDING and "energy_drift" not in health
+    else:
+        assert health["energy_drift"].max() <= 1e-10 and "drive_error" not in health
+
+
+def test_a_wrong_column_is_found_by_the_comparison():
+    """The comparison judges spatial columns by their class: a moment 2 %
+    off fails the torque class, and nothing else does."""
+    scenario = ss.scenario("rotor", ss.SpinningRotor().system(), 0.2, 21)
+    reference = simulate(scenario, "reference")
+    frame = reference.frame.copy()
+    frame["bearing.Mx"] *= 1.02
+    records = compare(reference, dataclasses.replace(reference, frame=frame, source="off"), scenario.tolerance,
+                      scenario.name)
+    failed = set(records.loc[records["verdict"] == "fail", "signal"])
+    assert failed == {"bearing.Mx"}
+
+
+class RevoluteOnly(ReferenceAdapter):
+    name = "revolute-only"
+    spatial_joints = frozenset({"revolute"})
+
+
+class Planar(ReferenceAdapter):
+    name = "planar-only"
+    features = ReferenceAdapter.features - {"spatial"}
+
+
+def test_an_adapter_without_spatial_scenes_is_refused_up_front():
+    scenario = ss.scenario("hanging", ss.hanging(), 0.1, 11)
+    with pytest.raises(ScenarioError) as refused:
+        simulate(scenario, Planar())
+    assert refused.value.key == "mechanism" and "does not build spatial" in refused.value.reason
+
+
+def test_a_joint_kind_the_adapter_does_not_build_is_refused_naming_the_joint():
+    scenario = ss.scenario("hanging", ss.hanging(), 0.1, 11)
+    with pytest.raises(ScenarioError) as refused:
+        simulate(scenario, RevoluteOnly())
+    assert refused.value.key == "joint.pivot.kind" and "spherical" in refused.value.reason
+    assert np.isfinite(simulate(ss.scenario("rotor", ss.SpinningRotor().system(), 0.1, 11), RevoluteOnly())
+                       ["bearing.Mx"]).all()
+
+
+
+def test_a_scene_an_engine_declares_it_cannot_build_is_a_row_that_says_so_not_a_failed_run():
+    """`mechval run`'s path for a declared refusal (`Plan.refusal`,
+    `Task.refused`): the task is never run, its one record is "missing"
+    with the reason, the run passes, and the page's cell says "not built"."""
+    from mechval.harness.plan import prepare
+    from mechval.harness.runner import outcome_records, run_alongside
+    from mechval.judging.compare import passed
+    from mechval.records.outcome import Task
+    from mechval.reports.build import _cell
+
+    scenario = ss.scenario("hanging", ss.hanging(), 0.1, 11)
+    refusal = prepare(scenario).refusal(Planar())
+    assert refusal.startswith("mechanism: planar-only: its adapter does not build spatial")
+    assert prepare(scenario).refusal(ReferenceAdapter()) == ""
+
+    class NeverRuns:
+        def run(self, call, items, done):
+            assert not items, "a refused task was run"
+            return []
+
+    seen = []
+    outcomes, _ = run_alongside([Task(scenario, "planar-only", refused=refusal)], (), NeverRuns(), seen.append)
+    assert [o.error for o in outcomes] == [refusal] and [o.error for o in seen] == [refusal]
+    records = outcome_records(outcomes[0], None)
+    assert list(records["verdict"]) == ["missing"] and refusal in records["reason"].iloc[0]
+    assert passed(records) and _cell(records)["text"] == "not built"

@@ -40,7 +40,6 @@ import numpy as np
 import pandas as pd
 
 from mechval.adapter import RawRun, RunInfo, Unrepresentable
-from mechval.model.mechanism import GROUND
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.mechanism import spatial_solution
 from mechval.reference.spatial.rotation import quaternion_to_matrix
@@ -54,29 +53,11 @@ FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 MOTION_TOLERANCE = 1e-9     # how closely the pre-roll's solve must meet the run's start (m)
 
 
-def spatial_rate(system: SpatialSystem, times: np.ndarray, dense: int = 2001) -> float:
-    """Ω of the step rule for a spatial scene: the largest over bodies and
-    the run of |ω|, √|α| and ∛|jerk| (rad/s) from the reference on a dense
-    grid (as `mechval.model.kinematics.peak_rate` for planar scenes)."""
-    t = np.linspace(float(times[0]), float(times[-1]), dense)
-    frame = spatial_solution(system, t).frame
-    rate = 0.0
-    for b in system.bodies:
-        w = frame[[f"{b.name}.w{c}" for c in "xyz"]].to_numpy()
-        al = frame[[f"{b.name}.alpha{c}" for c in "xyz"]].to_numpy()
-        jerk = np.gradient(al, t, axis=0)
-        norm = lambda v: float(np.linalg.norm(v, axis=1).max())     # noqa: E731
-        rate = max(rate, norm(w), np.sqrt(norm(al)), np.cbrt(norm(jerk)))
-    return rate
-
-
-def start_frame(system: SpatialSystem, times: np.ndarray, preroll: int, dt: float) -> tuple[int, pd.DataFrame]:
+def start_frame(system: SpatialSystem, first: pd.DataFrame, preroll: int, dt: float) -> tuple[int, pd.DataFrame]:
     """The longest pre-roll (≤ the one asked) over which the reference
-    solves on the same branch as at the run's first instant, and the
-    reference's row at its start."""
-    # Two instants: the dynamics reference cannot integrate over one
-    # (scipy's solve_ivp refuses an empty span).
-    first = spatial_solution(system, times[:2]).frame.iloc[:1].reset_index(drop=True)
+    solves on the same branch as at the run's first instant (`first`, its
+    row there), and the reference's row at the pre-roll's start."""
+    times = first["t"].to_numpy()
     positions = [f"{b.name}.{q}" for b in system.bodies for q in ("x", "y", "z", "qw", "qx", "qy", "qz")]
     while preroll > 0:
         t = float(times[0]) - preroll * dt + dt * np.arange(preroll + 1)
@@ -109,7 +90,12 @@ class SpatialModel:
         if abs(self.substeps * dt - interval) > 1e-9 * interval:
             raise ValueError(f"mujoco: the step {dt} does not divide the sample interval {interval}")
         asked = 0 if system.forward_dynamics else int(np.ceil(settings["preroll_timeconsts"] * settings["solref_steps"]))
-        self.preroll, self.start = start_frame(system, self.times, asked, dt)
+        # Two instants: the dynamics reference cannot integrate over one
+        # (scipy's solve_ivp refuses an empty span).
+        reference = spatial_solution(system, self.times[:2])
+        #: Whether the reference reports body resultants (rank-deficient joint rows).
+        self.redundant = bool(reference.structure.redundant)
+        self.preroll, self.start = start_frame(system, reference.frame.iloc[:1].reset_index(drop=True), asked, dt)
         self.t_start = float(self.start["t"].iloc[0])
         self.tree: Tree = spanning_tree(system)
         self.xml = mjcf(system, self.tree, poses_of(system, self.start), settings, dt)
@@ -152,16 +138,30 @@ class SpatialModel:
         mujoco.mj_getState(m, d, state, FULL)
         return state, residual
 
-    def controls(self, nstep: int) -> np.ndarray | None:
-        """Each torque law's activation rate over each step: the slope of
-        its law, so the torque is the law at every step boundary."""
-        if not self.torque_acts:
-            return None
+    def controls(self, nstep: int) -> tuple[np.ndarray | None, int | None]:
+        """The rollout's controls and their spec: each torque law's
+        activation rate over each step (the slope of its law, so the torque
+        is the law at every step boundary) and, with body loads, every
+        body's applied force and torque (`loads`), which a rollout takes
+        only as a control."""
+        if not self.torque_acts and not self.system.loads:
+            return None, None
         control = np.zeros((nstep, self.m.nu))
         t = self.t_start + self.dt * np.arange(nstep + 1)
         for act, law in zip(self.torque_acts, self.system.torques):
             control[:, act] = np.diff(np.asarray(law.law.value(t), dtype=float) + 0 * t) / self.dt
-        return control
+        if not self.system.loads:
+            return control, None
+        spec = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+        return np.hstack([control, np.broadcast_to(self.loads().ravel(), (nstep, self.loads().size))]), spec
+
+    def loads(self) -> np.ndarray:
+        """(nbody, 6) MuJoCo's xfrc_applied: each body load's force at the
+        centre of mass and torque, world axes (the scene's convention)."""
+        xfrc = np.zeros((self.m.nbody, 6))
+        for load in self.system.loads:
+            xfrc[self.bid[load.body]] += np.concatenate([np.asarray(load.force, float), np.asarray(load.torque, float)])
+        return xfrc
 
     # -- run ------------------------------------------------------------------------------
 
@@ -170,7 +170,9 @@ class SpatialModel:
         state0, residual = self.initial_state()
         nstep = self.preroll + self.substeps * (len(self.times) - 1)
         start = time.perf_counter()
-        states = rollout_in_pieces(m, d, state0, self.controls(nstep), nstep) if nstep else np.empty((0, len(state0)))
+        control, spec = self.controls(nstep)
+        states = rollout_in_pieces(m, d, state0, control, nstep, spec) if nstep else np.empty((0, len(state0)))
+        d.xfrc_applied[:] = self.loads()       # for the read-out (a state does not hold them)
         wall = time.perf_counter() - start
         after = self.preroll + self.substeps * np.arange(len(self.times))
         samples = np.empty((len(after), len(state0)))
@@ -178,7 +180,7 @@ class SpatialModel:
         samples[after > 0] = states[after[after > 0] - 1]
         warnings = collections.Counter({mujoco.mjtWarning(i).name: w.number for i, w in enumerate(d.warning)
                                         if w.number})
-        fields = ("time", "xpos", "xquat", "cvel", "cacc", "cfrc_int", "subtree_com", "site_xpos", "xaxis",
+        fields = ("time", "xpos", "xipos", "xquat", "cvel", "cacc", "cfrc_int", "subtree_com", "site_xpos", "xaxis",
                   "qfrc_constraint", "qpos", "actuator_force")
         record = {name: [] for name in fields}
         cuts: list[dict[str, np.ndarray]] = []
@@ -255,7 +257,49 @@ class SpatialModel:
         for act, law in zip(self.torque_acts, system.torques):
             col[f"{law.name}.T"] = S["actuator_force"][:, act]
         names = ["t"] + system.motion_columns() + system.reaction_columns()
-        return pd.DataFrame(np.column_stack([col[n] for n in names]), columns=names)
+        frame = pd.DataFrame(np.column_stack([col[n] for n in names]), columns=names)
+        return frame.assign(**self.resultants(S, col)) if self.redundant else frame
+
+    def resultants(self, S: Mapping[str, np.ndarray], col: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Per body its resultant constraint load B.R.Fx … B.R.Mz (docs/
+        conventions.md, "Redundant constraints"): the net force of its joint
+        reactions and drive efforts and their moment about its centre of
+        mass, world axes; unique whatever split of the loads MuJoCo's
+        regularised solver picks."""
+        n = len(self.times)
+        force = {b.name: np.zeros((n, 3)) for b in self.system.bodies}
+        moment = {b.name: np.zeros((n, 3)) for b in self.system.bodies}
+        com = {b.name: S["xipos"][:, bid] for b, bid in zip(self.system.bodies, self.bid.values())}
+
+        def load(body: str, F: np.ndarray, M: np.ndarray, at: np.ndarray) -> None:
+            if body in force:
+                force[body] += F
+                moment[body] += M + cross(at - com[body], F)
+
+        take = lambda name, q: np.column_stack([col[f"{name}.{q}{c}"] for c in "xyz"])    # noqa: E731
+        for j in self.system.joints:
+            F, M, p_j = take(j.name, "F"), take(j.name, "M"), S["site_xpos"][:, self.site(f"{self.names.joint(j.name)}j")]
+            load(j.body_j, F, M, p_j)
+            load(j.body_i, -F, -M, p_j)
+        for drive in self.system.drives:
+            j = self.system.joint(drive.joint)
+            jn = self.names.joint(j.name)
+            z = S["xaxis"][:, self.m.joint(jn).id]
+            p_j = S["site_xpos"][:, self.site(f"{jn}j")]
+            if j.kind == "revolute":
+                T = col[f"{drive.name}.T"][:, None] * z
+                load(j.body_j, 0 * T, T, p_j)
+                load(j.body_i, 0 * T, -T, p_j)
+            else:
+                F = col[f"{drive.name}.F"][:, None] * z
+                load(j.body_j, F, 0 * F, p_j)
+                load(j.body_i, -F, 0 * F, p_j)
+        out = {}
+        for b in self.system.bodies:
+            for c, axis in enumerate("xyz"):
+                out[f"{b.name}.R.F{axis}"], out[f"{b.name}.R.M{axis}"] = force[b.name][:, c], moment[b.name][:, c]
+        return {name: out[name] for b in self.system.bodies for name in
+                (f"{b.name}.R.{q}" for q in ("Fx", "Fy", "Fz", "Mx", "My", "Mz"))}
 
     @staticmethod
     def put_reaction(col: dict, name: str, F: np.ndarray, M: np.ndarray) -> None:

@@ -298,6 +298,9 @@ def mjcf(system: SpatialSystem, tree: Tree, poses: Mapping[str, Pose], settings:
                          'dyntype="integrator" gainprm="1" biastype="none" ctrllimited="false" '
                          'forcelimited="false" actlimited="false"/>')
     for j in system.joints:
+        if j.damping and j.kind not in ("revolute", "prismatic"):
+            raise Unrepresentable(f"joint.{j.name}.damping", f"the MuJoCo model damps revolute and prismatic joints "
+                                                            f"only, not {j.kind}")
         if j.damping:
             tendons.append(f'<fixed name="{names.joint(j.name)}d" damping="{_vec(j.damping)}">'
                            f'<joint joint="{names.joint(j.name)}" coef="1"/></fixed>')

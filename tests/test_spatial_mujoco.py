@@ -1,0 +1,241 @@
+"""MuJoCo on spatial scenes (issue 26, "Engines"): each scene run by the
+adapter at its default settings against the spatial reference at the same
+instants, per signal class with mechval's default tolerances
+(`DEFAULT_TOLERANCE`): positions and quaternion components absolute,
+velocities, accelerations, forces and moments relative to the class's peak
+over the columns the reference reports (redundant constraints leave some
+reactions missing there: only the others are compared). The model and
+its read-out: engines/mujoco/spatial_model.py and spatial.py."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mechval.adapter import PeakRates, Unrepresentable
+from mechval.engines.mujoco.spatial_model import spanning_tree
+from mechval.model.kinematics import peak_rate
+from mechval.reference.spatial.rotation import quaternion_to_matrix
+from mechval.engines.mujoco.adapter import MujocoAdapter
+from mechval.model.drive import DriveLaw
+from mechval.model.mechanism import GROUND, TorqueLaw
+from mechval.model.scenario import DEFAULT_TOLERANCE
+from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
+from mechval.reference.spatial.rotation import frame_from_axis
+from mechval.reference.spatial.system import (BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint,
+                                              SpatialSystem, Spring)
+from spatial_benchmarks import Bricard
+from spatial_mechanisms import GRAVITY, RSSR, Bennett, Delta, HeavyTop, SphericalFourBar, TumblingBody, inertia, \
+    revolute, unit
+from test_spatial_joint_kinds import sliding_body
+
+pytestmark = pytest.mark.engine
+
+CLASSES = {"x": "position", "y": "position", "z": "position", "qw": "angle", "qx": "angle", "qy": "angle",
+           "qz": "angle", "vx": "velocity", "vy": "velocity", "vz": "velocity", "wx": "velocity", "wy": "velocity",
+           "wz": "velocity", "ax": "acceleration", "ay": "acceleration", "az": "acceleration",
+           "alphax": "acceleration", "alphay": "acceleration", "alphaz": "acceleration",
+           "Fx": "force", "Fy": "force", "Fz": "force", "F": "force",
+           "Mx": "torque", "My": "torque", "Mz": "torque", "T": "torque"}
+#: A class whose reference peak is below this (e.g. a ball joint's moment,
+#: zero but for rounding) is compared absolutely, against this bound: MuJoCo's
+#: value there must be rounding too.
+ZERO_PEAK = 1e-9
+
+
+#: The step rule's grid here (the harness's has 20,001 instants): one
+#: reference solve on it gives Ω and, at every `DENSE`-th instant, the
+#: reference the run is compared to (a tenth of the cost; on these smooth
+#: one-second runs Ω is the same to well under the rule's own rounding).
+DENSE = 20
+
+
+def run(system: SpatialSystem, t: np.ndarray, **overrides):
+    """MuJoCo's run at default settings (Ω from `DENSE`× finer instants)
+    and the reference at t."""
+    mechanism = spatial_mechanism(system)
+    adapter = MujocoAdapter()
+    fine = np.linspace(t[0], t[-1], DENSE * (len(t) - 1) + 1)
+    ref = spatial_solution(system, fine)
+    rates = PeakRates(fine, ref.frame, peak_rate(mechanism, ref.frame, fine))
+    settings = {**adapter.default_settings(mechanism, t, rates=rates), **overrides}
+    ref = dataclasses.replace(ref, frame=ref.frame.iloc[::DENSE].reset_index(drop=True))
+    assert np.allclose(ref.frame["t"], t, rtol=0, atol=1e-12)
+    return adapter.run(mechanism, t, settings), ref
+
+
+def errors(raw, ref) -> dict[str, float]:
+    """Per class the measure of `DEFAULT_TOLERANCE`: absolute for positions
+    and quaternions, else max|err| / max|reference| over the class's columns."""
+    columns: dict[str, list[str]] = {}
+    for name in ref.frame.columns[1:]:
+        if name not in ref.missing:
+            columns.setdefault(CLASSES[name.rsplit(".", 1)[1]], []).append(name)
+    out = {}
+    for cls, names in columns.items():
+        assert set(names) <= set(raw.frame.columns), f"MuJoCo left out {sorted(set(names) - set(raw.frame.columns))}"
+        err = float(np.abs(raw.frame[names].to_numpy() - ref.frame[names].to_numpy()).max())
+        peak = float(np.abs(ref.frame[names].to_numpy()).max())
+        out[cls] = err if cls in ("position", "angle") or peak < ZERO_PEAK else err / peak
+    return out
+
+
+def check(system: SpatialSystem, t: np.ndarray, bounds=None, **overrides):
+    """Every class within its bound; returns (measures, run, reference)."""
+    raw, ref = run(system, t, **overrides)
+    assert np.all(np.isfinite(raw.frame.to_numpy())), "MuJoCo's run has NaN"
+    measured = errors(raw, ref)
+    bounds = {**DEFAULT_TOLERANCE, **(bounds or {})}
+    for cls, err in measured.items():
+        bound = ZERO_PEAK if cls not in ("position", "angle") and \
+            float(np.abs(ref.frame[[c for c in ref.frame.columns[1:] if c not in ref.missing and
+                                    CLASSES[c.rsplit(".", 1)[1]] == cls]].to_numpy()).max()) < ZERO_PEAK \
+            else bounds[cls]
+        assert err <= bound, f"{system.name}: {cls} off by {err:.3g} (bound {bound:g}); all: {measured}"
+    assert raw.info.warnings == 0, raw.info
+    return measured, raw, ref
+
+
+ONE_SECOND = np.linspace(0.0, 1.0, 101)
+
+
+def test_spherical_fourbar_driven_closed_loop():
+    """Four revolute axes through one point (three redundant rows: the
+    reference reports no joint reaction, only the drive torque)."""
+    check(SphericalFourBar().system, ONE_SECOND)
+
+
+def test_rssr_reactions_through_a_ball_and_a_universal_joint():
+    """The loop is cut at the ball (one connect); every reaction is unique."""
+    _, raw, ref = check(RSSR().system, ONE_SECOND)
+    assert not ref.missing and {"P.Fx", "Q.Mz", "C.My"} <= set(raw.frame.columns)
+
+
+def test_bennett_overconstrained_loop():
+    """Bennett's linkage: the 4R loop MuJoCo closes with a revolute cut
+    (two connects, six rows for five), redundant as a whole: its soft,
+    regularised rows take the redundancy."""
+    check(Bennett().system, ONE_SECOND)
+
+
+@pytest.mark.slow
+def test_bricard_released_under_gravity():
+    """A04's first second: Grübler 0, mobility 1, no drive (10 s: the
+    reference integrates the second at its tight tolerance)."""
+    check(Bricard().system, ONE_SECOND)
+
+
+def test_delta_robot_three_drives_and_universal_cuts():
+    """Three legs, two loops closed at universal joints (a connect and a
+    tendon holding the pins square)."""
+    check(Delta().system, ONE_SECOND)
+
+
+def with_velocities(m) -> SpatialSystem:
+    return dataclasses.replace(m.system, velocities=m.velocities)
+
+
+def test_t_handle_flips():
+    """The free body through its intermediate-axis flip (the gyroscopic
+    term decides it): 2.4 quarter periods, ω2 changes sign."""
+    m = TumblingBody()
+    t = np.linspace(0.0, 2.4 * m.quarter, 241)
+    _, raw, _ = check(with_velocities(m), t)
+    A = quaternion_to_matrix(raw.frame[["body.qw", "body.qx", "body.qy", "body.qz"]].to_numpy())
+    omega = np.einsum("nji,nj->ni", A, raw.frame[["body.wx", "body.wy", "body.wz"]].to_numpy())   # body axes
+    assert omega[0, 1] > 3.9 and omega[-1, 1] < -3.9, "the flip did not happen"
+
+
+def test_heavy_top_precesses():
+    """A quarter of the slow precession of a top on a ball joint; the
+    ball's moment is zero in the reference (compared absolutely)."""
+    m = HeavyTop()
+    check(with_velocities(m), np.linspace(0.0, 0.5 * np.pi / m.precession, 101))
+
+
+@pytest.mark.parametrize("kind, axis", [("cylindrical", (1.0, 1.0, 1.0)), ("planar", (0.2, -0.3, 1.0))])
+def test_sliding_body_joint_kinds(kind, axis):
+    """A body sliding and spinning under gravity on a cylindrical (slide +
+    hinge) and a planar joint (two slides + hinge)."""
+    system, u = sliding_body(kind, axis)
+    v0 = 0.4 * u if kind == "cylindrical" else unit(np.cross(u, [1.0, 0.0, 0.0])) * 0.5
+    system = dataclasses.replace(system, velocities={"body": (tuple(v0), tuple(7.0 * u))})
+    check(system, ONE_SECOND)
+
+
+def hooke() -> SpatialSystem:
+    """Hooke's joint of tests/test_spatial_joint_kinds.py: a universal
+    joint in the tree (the loop is cut at the output's bearing)."""
+    beta = np.radians(35.0)
+    a2 = np.array([np.cos(beta), np.sin(beta), 0.0])
+    e_b = np.cross([0.0, 0.0, 1.0], a2)
+    return SpatialSystem(
+        "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
+                  SpatialBody("output", 1.0, tuple(0.2 * a2), inertia(31))),
+        (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+         SpatialJoint("U", "universal", "input", "output", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                      frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
+         revolute("R2", GROUND, "output", 0.3 * a2, a2, e_b)),
+        (SpatialDrive("R1", DriveLaw(0.0, 2.0, 0.7)),), GRAVITY)
+
+
+def test_universal_joint_in_the_tree():
+    check(hooke(), ONE_SECOND)
+
+
+def crank_plate_slider() -> SpatialSystem:
+    """A driven crank with a plate welded to it (fixed joint) and a block
+    driven along the crank (a prismatic drive): two drives, no loop."""
+    axis = unit((0.3, 0.1, 1.0))
+    slide = frame_from_axis((1.0, 0.0, 0.0))
+    return SpatialSystem(
+        "crank, plate and slider",
+        (SpatialBody("crank", 2.0, (0.1, 0.0, 0.05), inertia(50)), SpatialBody("plate", 1.0, (0.3, 0.1, -0.1), inertia(51)),
+         SpatialBody("block", 0.5, (0.2, 0.0, 0.0), inertia(52, 1e-4))),
+        (revolute("O", GROUND, "crank", (0.0, 0.0, 0.0), axis),
+         SpatialJoint("W", "fixed", "crank", "plate", (0.25, 0.0, 0.0), (0.25, 0.0, 0.0)),
+         SpatialJoint("S", "prismatic", "crank", "block", (0.2, 0.0, 0.0), (0.2, 0.0, 0.0), slide, slide)),
+        (SpatialDrive("O", DriveLaw(0.2, 3.0, 1.5), "crank_drive"), SpatialDrive("S", DriveLaw(0.0, 0.1, -0.2), "push")),
+        GRAVITY)
+
+
+def test_fixed_joint_and_prismatic_drive():
+    check(crank_plate_slider(), ONE_SECOND)
+
+
+def forced_arm() -> SpatialSystem:
+    """Torque-driven: an arm on a tilted damped hinge under a sinusoidal
+    torque law and a constant body load, a block on a damped slide along
+    it pulled by a spring-damper from the ground; gravity askew."""
+    axis = unit((0.2, 0.3, 1.0))
+    slide = frame_from_axis((1.0, 0.0, 0.0))
+    hinge = revolute("O", GROUND, "arm", (0.0, 0.0, 0.0), axis)
+    return SpatialSystem(
+        "forced arm", (SpatialBody("arm", 1.0, (0.15, 0.0, 0.0), inertia(70, 1e-2)),
+                       SpatialBody("block", 0.4, (0.0, 0.0, 0.0), inertia(71, 1e-3), position=(0.25, 0.0, 0.0))),
+        (dataclasses.replace(hinge, damping=0.05),
+         SpatialJoint("S", "prismatic", "arm", "block", (0.25, 0.0, 0.0), (0.0, 0.0, 0.0), slide, slide, damping=0.8)),
+        gravity=(1.0, -2.0, -9.81),
+        springs=(Spring("spring", GROUND, (0.0, 0.4, 0.1), "block", (0.0, 0.0, 0.0), 40.0, 0.3, 0.5),),
+        loads=(BodyLoad("push", "arm", (0.5, -0.2, 0.1), (0.0, 0.05, -0.1)),),
+        torques=(JointTorque("O", TorqueLaw("O", 0.2, 0.5, 1.5, 0.3), "motor"),))
+
+
+def test_torque_law_spring_damper_and_body_load():
+    check(forced_arm(), ONE_SECOND)
+
+
+def test_a_loop_only_a_slide_closes_is_refused():
+    """Two bodies joined to the ground and to each other by prismatic joints
+    only: MuJoCo's model closes loops at ball, hinge or universal joints."""
+    slide = frame_from_axis((1.0, 0.0, 0.0))
+    bodies = tuple(SpatialBody(n, 1.0, (0.0, 0.0, 0.0), inertia(80 + k)) for k, n in enumerate(("a", "b")))
+    joints = (SpatialJoint("Sa", "prismatic", GROUND, "a", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), slide, slide),
+              SpatialJoint("Sb", "prismatic", GROUND, "b", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), slide, slide),
+              SpatialJoint("Sab", "cylindrical", "a", "b", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), slide, slide))
+    system = SpatialSystem("slides", bodies, joints, (SpatialDrive("Sa", DriveLaw(0.0, 0.1, 0.0)),))
+    with pytest.raises(Unrepresentable) as caught:
+        spanning_tree(system)
+    assert caught.value.key == "joint.Sab.kind"

@@ -15,10 +15,8 @@ import numpy as np
 import pytest
 
 from mechval.adapter import PeakRates, Unrepresentable
-from mechval.engines.mujoco.spatial_model import spanning_tree
 from mechval.model.kinematics import peak_rate
 from mechval.reference.spatial.rotation import quaternion_to_matrix
-from mechval.engines.mujoco.adapter import MujocoAdapter
 from mechval.model.drive import DriveLaw
 from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
@@ -31,7 +29,15 @@ from spatial_mechanisms import GRAVITY, RSSR, Bennett, Delta, HeavyTop, Spherica
     revolute, unit
 from test_spatial_joint_kinds import sliding_body
 
-pytestmark = pytest.mark.engine
+try:
+    import mujoco  # noqa: F401
+except ImportError as exc:
+    # Each test skips, saying why (as tests/test_mujoco.py does).
+    pytestmark = [pytest.mark.engine, pytest.mark.skip(reason=f"mujoco cannot be imported ({exc})")]
+else:
+    pytestmark = pytest.mark.engine     # every test here runs MuJoCo
+    from mechval.engines.mujoco.adapter import MujocoAdapter
+    from mechval.engines.mujoco.spatial_model import spanning_tree
 
 CLASSES = {"x": "position", "y": "position", "z": "position", "qw": "angle", "qx": "angle", "qy": "angle",
            "qz": "angle", "vx": "velocity", "vy": "velocity", "vz": "velocity", "wx": "velocity", "wy": "velocity",

@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from mechval.model.mechanism import GROUND, Mechanism
+from mechval.reference.spatial.rotation import quaternion_to_matrix
 
 SHADES = ["#440154", "#31688e", "#35b779", "#b5de2b", "#fde725"]
 AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")
@@ -17,10 +18,7 @@ AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")
 
 def rotations(motion: pd.DataFrame, body: str) -> np.ndarray:
     """The body's rotation matrices (N, 3, 3) from its quaternion columns."""
-    w, x, y, z = (motion[f"{body}.q{c}"].to_numpy(dtype=float) for c in "wxyz")
-    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-                     np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-                     np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
+    return quaternion_to_matrix(motion[[f"{body}.q{c}" for c in "wxyz"]].to_numpy(dtype=float))
 
 
 def world_points(motion: pd.DataFrame, body: str, points) -> np.ndarray:

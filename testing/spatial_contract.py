@@ -25,6 +25,7 @@ import pytest
 
 from mechval.harness.simulate import simulate
 from mechval.model.scenario import DEFAULT_TOLERANCE, ScenarioError
+from mechval.reference.spatial.rotation import quaternion_to_matrix
 
 from . import spatial_scenes as ss
 from .comparison import engine_or_skip
@@ -122,19 +123,10 @@ class SpatialContract:
         assert np.abs(origin + arm - case.com_position(t)).max() <= DEFAULT_TOLERANCE["position"]
         v_G = vectors(signals, "brick", "vx vy vz") + np.cross(w, arm)
         assert relative(v_G, case.com_velocity(t), 0.0) <= DEFAULT_TOLERANCE["velocity"]
-        R = matrices(q)
+        R = quaternion_to_matrix(q)
         H = np.einsum("nij,jk,nlk,nl->ni", R, ss.TILTED_INERTIA, R, w)
         assert relative(H, np.broadcast_to(H[0], H.shape), 0.0) <= DEFAULT_TOLERANCE["velocity"]
 
 
-def matrices(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (N, 3, 3) of unit quaternions (N, 4), w first."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-                     np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-                     np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
-
-
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.einsum("nij,j->ni", matrices(q), v)
+    return np.einsum("nij,j->ni", quaternion_to_matrix(q), v)

@@ -25,6 +25,7 @@ from mechval.model.mechanism import Mechanism
 # folders through them (mechval.records.outputs).
 from mechval.records.outputs import current_umask, write_atomically, write_folder_atomically  # noqa: F401
 from mechval.reference.resultants import body_resultants, resultant_columns, resultant_inputs
+from mechval.reference.spatial import resultants as spatial_resultants
 
 COMMON_SIGNALS = (
     "t", "theta2", "omega2", "alpha2", "theta3", "omega3", "alpha3",
@@ -225,13 +226,15 @@ def with_resultant_columns(mechanism: Mechanism, raw: pd.DataFrame,
     constraints) and the raw frame has not got them already (the
     reference adds them before it blanks the reactions that are not
     unique). A reason for missing inputs carries over."""
-    wanted = resultant_columns(mechanism)
+    spatial = mechanism.spatial
+    wanted = resultant_columns(mechanism) if spatial is None else spatial_resultants.resultant_columns(spatial)
     if not set(wanted) & set(mechanism.signal_map.values()) or set(wanted) <= set(raw.columns):
         return raw, missing
-    inputs = resultant_inputs(mechanism)
+    inputs = resultant_inputs(mechanism) if spatial is None else spatial_resultants.resultant_inputs(spatial)
     if not set(inputs) <= set(raw.columns):
         return raw, missing
     reasons = [missing[c] for c in inputs if c in missing]
     if reasons:
         missing = {**missing, **{c: reasons[0] for c in wanted}}
-    return raw.assign(**body_resultants(mechanism, raw)), missing
+    found = body_resultants(mechanism, raw) if spatial is None else spatial_resultants.spatial_resultants(spatial, raw)
+    return raw.assign(**found), missing

@@ -11,8 +11,12 @@ import numpy as np
 import pandas as pd
 
 from mechval.model.mechanism import Mechanism
+from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.dynamics import SpatialDynamics
+from mechval.reference.spatial.joints import Constraints
+from mechval.reference.spatial.resultants import resultant_columns
 from mechval.reference.spatial.solver import SpatialSolution, solve_spatial
+from mechval.reference.spatial.structure import Scaling, initial_pose, newton, structure
 from mechval.reference.spatial.system import SpatialSystem
 
 KIND = "spatial"
@@ -41,8 +45,23 @@ class _Motion:
 
 def spatial_signal_map(system: SpatialSystem) -> dict[str, str]:
     """Canonical signal → raw column: the same names (motion, then
-    reactions, drive efforts and torque laws)."""
-    return {name: name for name in system.motion_columns() + system.reaction_columns()}
+    reactions, drive efforts and torque laws, and with redundant
+    constraints each body's resultant, `mechval.reference.spatial.resultants`)."""
+    names = system.motion_columns() + system.reaction_columns()
+    return {name: name for name in names + (resultant_columns(system) if has_redundant_constraints(system) else [])}
+
+
+def has_redundant_constraints(system: SpatialSystem) -> bool:
+    """Whether the joints' rows are dependent at the assembly (one Newton
+    solve at t = 0). A scene that does not assemble says no here: the
+    reference refuses it where it runs, with its reason."""
+    c = Constraints(system)
+    scaling = Scaling(c)
+    try:
+        pose = newton(c, scaling, initial_pose(c), np.zeros(1), None)
+    except MechanismError:
+        return False
+    return structure(c, scaling, pose).redundant > 0
 
 
 def spatial_mechanism(system: SpatialSystem, name: str | None = None) -> Mechanism:

@@ -39,6 +39,7 @@ import pandas as pd
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_times
 from mechval.reference.spatial.joints import Constraints, Pose
+from mechval.reference.spatial.resultants import resultant_columns
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
 from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, newton, structure
 from mechval.reference.spatial.system import SpatialSystem
@@ -61,7 +62,6 @@ REPICK_CONDITION = 1e3
 #: `positions.MAX_STEPS`): a run longer than this is refused naming time.end.
 MAX_NODES = 30_000
 METHOD = "absolute coordinates, rotations on the group, Newton continuation, multipliers (Nikravesh 1988, Haug 1989)"
-RESULTANT = ("R.Fx", "R.Fy", "R.Fz", "R.Mx", "R.My", "R.Mz")
 
 
 @dataclass(frozen=True)
@@ -276,7 +276,7 @@ class SpatialSolver:
                                    f"{'s' if found.redundant != 1 else ''} (Jacobian rank {found.rank} of "
                                    f"{found.rows} rows) make this reaction statically indeterminate")
         if found.redundant:
-            names = [f"{b.name}.{q}" for b in self.system.bodies for q in RESULTANT]
+            names = resultant_columns(self.system)
             frame = frame.assign(**dict(zip(names, resultants)))
         return frame, missing
 

@@ -93,8 +93,6 @@ class SpatialModel:
         # Two instants: the dynamics reference cannot integrate over one
         # (scipy's solve_ivp refuses an empty span).
         reference = spatial_solution(system, self.times[:2])
-        #: Whether the reference reports body resultants (rank-deficient joint rows).
-        self.redundant = bool(reference.structure.redundant)
         self.preroll, self.start = start_frame(system, reference.frame.iloc[:1].reset_index(drop=True), asked, dt)
         self.t_start = float(self.start["t"].iloc[0])
         self.tree: Tree = spanning_tree(system)
@@ -180,7 +178,7 @@ class SpatialModel:
         samples[after > 0] = states[after[after > 0] - 1]
         warnings = collections.Counter({mujoco.mjtWarning(i).name: w.number for i, w in enumerate(d.warning)
                                         if w.number})
-        fields = ("time", "xpos", "xipos", "xquat", "cvel", "cacc", "cfrc_int", "subtree_com", "site_xpos", "xaxis",
+        fields = ("time", "xpos", "xquat", "cvel", "cacc", "cfrc_int", "subtree_com", "site_xpos", "xaxis",
                   "qfrc_constraint", "qpos", "actuator_force")
         record = {name: [] for name in fields}
         cuts: list[dict[str, np.ndarray]] = []
@@ -257,49 +255,9 @@ class SpatialModel:
         for act, law in zip(self.torque_acts, system.torques):
             col[f"{law.name}.T"] = S["actuator_force"][:, act]
         names = ["t"] + system.motion_columns() + system.reaction_columns()
-        frame = pd.DataFrame(np.column_stack([col[n] for n in names]), columns=names)
-        return frame.assign(**self.resultants(S, col)) if self.redundant else frame
-
-    def resultants(self, S: Mapping[str, np.ndarray], col: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Per body its resultant constraint load B.R.Fx … B.R.Mz (docs/
-        conventions.md, "Redundant constraints"): the net force of its joint
-        reactions and drive efforts and their moment about its centre of
-        mass, world axes; unique whatever split of the loads MuJoCo's
-        regularised solver picks."""
-        n = len(self.times)
-        force = {b.name: np.zeros((n, 3)) for b in self.system.bodies}
-        moment = {b.name: np.zeros((n, 3)) for b in self.system.bodies}
-        com = {b.name: S["xipos"][:, bid] for b, bid in zip(self.system.bodies, self.bid.values())}
-
-        def load(body: str, F: np.ndarray, M: np.ndarray, at: np.ndarray) -> None:
-            if body in force:
-                force[body] += F
-                moment[body] += M + cross(at - com[body], F)
-
-        take = lambda name, q: np.column_stack([col[f"{name}.{q}{c}"] for c in "xyz"])    # noqa: E731
-        for j in self.system.joints:
-            F, M, p_j = take(j.name, "F"), take(j.name, "M"), S["site_xpos"][:, self.site(f"{self.names.joint(j.name)}j")]
-            load(j.body_j, F, M, p_j)
-            load(j.body_i, -F, -M, p_j)
-        for drive in self.system.drives:
-            j = self.system.joint(drive.joint)
-            jn = self.names.joint(j.name)
-            z = S["xaxis"][:, self.m.joint(jn).id]
-            p_j = S["site_xpos"][:, self.site(f"{jn}j")]
-            if j.kind == "revolute":
-                T = col[f"{drive.name}.T"][:, None] * z
-                load(j.body_j, 0 * T, T, p_j)
-                load(j.body_i, 0 * T, -T, p_j)
-            else:
-                F = col[f"{drive.name}.F"][:, None] * z
-                load(j.body_j, F, 0 * F, p_j)
-                load(j.body_i, -F, 0 * F, p_j)
-        out = {}
-        for b in self.system.bodies:
-            for c, axis in enumerate("xyz"):
-                out[f"{b.name}.R.F{axis}"], out[f"{b.name}.R.M{axis}"] = force[b.name][:, c], moment[b.name][:, c]
-        return {name: out[name] for b in self.system.bodies for name in
-                (f"{b.name}.R.{q}" for q in ("Fx", "Fy", "Fz", "Mx", "My", "Mz"))}
+        # Body resultants of redundant scenes: the harness computes them
+        # from these columns (`mechval.reference.spatial.resultants`).
+        return pd.DataFrame(np.column_stack([col[n] for n in names]), columns=names)
 
     @staticmethod
     def put_reaction(col: dict, name: str, F: np.ndarray, M: np.ndarray) -> None:

@@ -18,9 +18,9 @@ stored state):
   classical (+ ω × v) and gravity added back (cacc carries −g).
 - a tree joint's reaction: `cfrc_int` of its child (by parent on the
   child's subtree), moved to Pj, negated when the child is body_i; its
-  joint-space part taken out: a revolute joint's moment along its axis
-  (drive, torque law, damper: none is reaction) and a prismatic joint's
-  force along its axis.
+  joint-space part taken out (drive, torque law, damper, or rounding:
+  none is reaction): the moment along each hinge axis, the force along
+  each slide axis, a ball's whole moment.
 - a cut joint's reaction: its equalities' `efc_force` (a connect's rows are
   the world force on site1's body, body_j; the second connect of a revolute
   cut and the tendon of a universal cut add their force and its moment
@@ -272,12 +272,20 @@ class SpatialModel:
         p_j = S["site_xpos"][:, self.site(f"{jn}j")]
         moment = torque + cross(S["subtree_com"][:, m.body_rootid[bid]] - p_j, force)
         F, M = tj.sign * force, tj.sign * moment
-        if tj.joint.kind in ("revolute", "prismatic"):
-            axis = S["xaxis"][:, m.joint(jn).id]
-            if tj.joint.kind == "revolute":
+        # The parts along the joint's own coordinates are joint-space
+        # forces (drive, torque law, damper, or rounding), not reaction:
+        # a hinge's axial moment, a slide's axial force, a ball's moment.
+        # A joint's hinge and slide axes are orthogonal to each other or
+        # parallel (universal, planar, cylindrical), so one at a time.
+        first = m.body_jntadr[bid]
+        for jid in range(first, first + m.body_jntnum[bid]):
+            axis = S["xaxis"][:, jid]
+            if m.jnt_type[jid] == mujoco.mjtJoint.mjJNT_HINGE:
                 M = M - np.sum(M * axis, axis=1, keepdims=True) * axis
-            else:
+            elif m.jnt_type[jid] == mujoco.mjtJoint.mjJNT_SLIDE:
                 F = F - np.sum(F * axis, axis=1, keepdims=True) * axis
+            elif m.jnt_type[jid] == mujoco.mjtJoint.mjJNT_BALL:
+                M = np.zeros_like(M)
         self.put_reaction(col, tj.joint.name, F, M)
 
     def closure_gap(self, site_xpos: np.ndarray) -> float:

@@ -23,6 +23,7 @@ from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
 from mechval.reference.spatial.resultants import spatial_resultants
 from mechval.reference.spatial.rotation import frame_from_axis
+from mechval.testing import SpatialContract
 from mechval.reference.spatial.system import (BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint,
                                               SpatialSystem, Spring)
 from spatial_benchmarks import Bricard, FlyballGovernor
@@ -39,6 +40,13 @@ else:
     pytestmark = pytest.mark.engine     # every test here runs MuJoCo
     from mechval.engines.mujoco.adapter import MujocoAdapter
     from mechval.engines.mujoco.spatial_model import spanning_tree
+
+class TestMujocoSpatialContract(SpatialContract):
+    """The spatial contract (gravity and reactions in 3-D, a ball joint's
+    reaction, a rotor's gyroscopic moment, a free body's momentum)."""
+
+    engine = "mujoco"
+
 
 CLASSES = {"x": "position", "y": "position", "z": "position", "qw": "angle", "qx": "angle", "qy": "angle",
            "qz": "angle", "vx": "velocity", "vy": "velocity", "vz": "velocity", "wx": "velocity", "wy": "velocity",

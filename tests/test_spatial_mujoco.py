@@ -318,3 +318,43 @@ def test_flyball_governor_at_a_quarter_step():
     acceleration peak, 2.1e-9 of the force peak."""
     measured, _, _ = check(with_velocities(FlyballGovernor()), FLYBALL_FIRST, refine=4)
     assert measured["acceleration"] <= 1e-5, measured
+
+
+def reversed_joint(j: SpatialJoint) -> SpatialJoint:
+    """The same joint declared the other way round (body_i ↔ body_j)."""
+    return dataclasses.replace(j, body_i=j.body_j, body_j=j.body_i, point_i=j.point_j, point_j=j.point_i,
+                               frame_i=j.frame_j, frame_j=j.frame_i)
+
+
+def test_joints_declared_child_first():
+    """Crank, plate and slider with every joint declared from the child
+    (the tree's coordinates then run against the scene's: sign −1 on the
+    hinge, the slide, both drives and every reaction); the laws are the
+    negatives, so the motion is the same."""
+    system = crank_plate_slider()
+    laws = {"O": DriveLaw(-0.2, -3.0, -1.5), "S": DriveLaw(0.0, -0.1, 0.2)}
+    check(dataclasses.replace(system, joints=tuple(reversed_joint(j) for j in system.joints),
+                              drives=tuple(dataclasses.replace(d, law=laws[d.joint]) for d in system.drives)),
+          ONE_SECOND)
+
+
+class Sine:
+    """φ(t) = sin t: a law whose acceleration is not constant."""
+
+    def angle(self, t):
+        return np.sin(t)
+
+    def rate(self, t):
+        return np.cos(t)
+
+    def acceleration(self, t):
+        return -np.sin(t)
+
+
+def test_a_drive_of_varying_acceleration_is_refused():
+    """The clock follows φ̈ = const only (the planar model's rule too)."""
+    from mechval.engines.mujoco.spatial_model import constant_acceleration
+    with pytest.raises(Unrepresentable) as caught:
+        constant_acceleration(SpatialDrive("O", Sine(), "wave"))
+    assert caught.value.key == "drive.wave"
+    assert constant_acceleration(SpatialDrive("O", DriveLaw(0.1, 2.0, -0.7))) == -0.7

@@ -358,3 +358,17 @@ def test_a_drive_of_varying_acceleration_is_refused():
         constant_acceleration(SpatialDrive("O", Sine(), "wave"))
     assert caught.value.key == "drive.wave"
     assert constant_acceleration(SpatialDrive("O", DriveLaw(0.1, 2.0, -0.7))) == -0.7
+
+
+def test_a_point_mass_is_refused_naming_its_inertia():
+    """MuJoCo needs every principal moment of a moving body ≥ 1e-14 kg·m²
+    (the spatial reference takes a point mass; the MJCF refuses it before
+    MuJoCo's compiler would, naming the body's key)."""
+    from mechval.engines.mujoco.spatial_model import Pose, mjcf
+    system, _ = sliding_body("spherical", (0.0, 0.0, 1.0))
+    system = dataclasses.replace(system, bodies=(dataclasses.replace(system.bodies[0], inertia=np.zeros((3, 3))),))
+    settings = {"solref_steps": 10.0, "solref_dampratio": 1.0, "drive_solref_steps": 1.0, "solimp": "0.9999 0.9999 0.001 0.5 2",
+                "integrator": "RK4", "clock_mass": 1e12, "tolerance": 0.0, "iterations": 3}
+    with pytest.raises(Unrepresentable) as caught:
+        mjcf(system, spanning_tree(system), {"body": Pose(np.zeros(3), np.eye(3))}, settings, 1e-3)
+    assert caught.value.key == "body.body.inertia"

@@ -45,7 +45,7 @@ from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.rotation import matrix_to_quaternion
 from mechval.reference.spatial.system import SpatialJoint, SpatialSystem
 
-from mechval.engines.mujoco.model import INTEGRATORS, MIN_MASS, SOLIMP
+from mechval.engines.mujoco.model import INTEGRATORS, MIN_IZZ, MIN_MASS, SOLIMP
 
 #: Which joints are cut first (higher first): those an equality closes.
 CUT_KINDS = ("spherical", "revolute", "universal")
@@ -124,9 +124,11 @@ def spanning_tree(system: SpatialSystem) -> Tree:
             tree_joints.append(j)
     for j in cuts:
         if j.kind not in CUT_KINDS or j.name in must_be_tree(system):
-            raise Unrepresentable(f"joint.{j.name}.kind", f"the MuJoCo model closes a loop only at an undriven, "
-                                                          f"undamped {', '.join(CUT_KINDS)} joint, and this loop "
-                                                          f"has none but {j.name!r} ({j.kind})")
+            what = "driven, damped or torque-loaded" if j.name in must_be_tree(system) else f"a {j.kind} joint"
+            raise Unrepresentable(f"joint.{j.name}.kind", f"the MuJoCo model closes a loop only at a "
+                                                          f"{', '.join(CUT_KINDS)} joint that is not driven, damped "
+                                                          f"or torque-loaded; this loop's last choice, {j.name!r}, "
+                                                          f"is {what}")
     oriented, reached, free = [], set(), []
     pending = list(tree_joints)
     for start in [GROUND] + [b.name for b in system.bodies]:
@@ -252,6 +254,9 @@ def mjcf(system: SpatialSystem, tree: Tree, poses: Mapping[str, Pose], settings:
         if b.mass < MIN_MASS:
             raise Unrepresentable(f"body.{body}.mass", f"MuJoCo refuses a moving body lighter than {MIN_MASS:g} kg, "
                                                       f"got {b.mass!r}")
+        if np.linalg.eigvalsh(np.asarray(b.inertia, dtype=float)).min() < MIN_IZZ:
+            raise Unrepresentable(f"body.{body}.inertia", f"MuJoCo needs every principal moment of a moving body "
+                                                          f"≥ {MIN_IZZ:g} kg·m² (a point mass has none)")
         P, C = pose(parent), pose(body)
         rel_pos = P.rotation.T @ (C.origin - P.origin)
         rel_quat = matrix_to_quaternion(P.rotation.T @ C.rotation)

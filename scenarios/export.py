@@ -16,13 +16,16 @@ from typing import Any, Mapping
 
 from mechval.reference.linkages import without_closed_form
 from mechval.model.mechanism import GROUND, BodyTorque, Joint, SpringDamper
-from mechval.model.scenario import DEFAULT_TOLERANCE, Scenario
+from mechval.model.scenario import DEFAULT_TOLERANCE, Scenario, ScenarioError
 
 Point = tuple[float, float]
 
 
 def planar_file(scenario: Scenario) -> str:
     """The TOML text of `scenario` as a planar file named NAME-planar."""
+    if scenario.mechanism == "spatial":
+        raise ScenarioError(scenario.source, "mechanism", "`mechval export` writes a scene as a planar file; a "
+                                                          "spatial scene has no planar form (its file is its text)")
     kind, expanded = scenario.mechanism, scenario.closed_form is not None
     scenario = without_closed_form(scenario) if expanded else scenario
     scene = scenario.scene

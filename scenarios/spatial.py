@@ -53,11 +53,12 @@ def parse_spatial(data: Mapping[str, Any], source: str | Path | None = None,
     top = Reader(source, "", data)
     top.only(TOP_KEYS)
     name, _, description, tags = heading(top)
-    points = {GROUND: _points(top.sub("ground"))}
-    masses = _bodies(top, points)
+    ground = top.sub("ground")
+    points, axes = {GROUND: _points(ground, reserved="axes")}, {GROUND: _axes(ground.sub("axes"))}
+    masses = _bodies(top, points, axes)
     poses = _assembly(top.sub("assembly"), list(masses))
     bodies = tuple(SpatialBody(n, mass, com, inertia, *poses[n]) for n, (mass, com, inertia) in masses.items())
-    joints = _joints(top, points)
+    joints = _joints(top, points, axes)
     drives = _drives(top, joints)
     torques = _torques(top, joints, drives)
     springs, loads = _forces(top, points)
@@ -99,9 +100,19 @@ def vector(table: Reader, key: str, what: str = "[x, y, z] in m", value: Any = N
     return tuple(table.check_number(f"{key}[{k}]", v) for k, v in enumerate(value))
 
 
-def direction(table: Reader, key: str, what: str) -> np.ndarray:
-    """A non-zero 3-vector (any length): a direction."""
-    v = np.array(vector(table, key, what))
+def direction(table: Reader, key: str, what: str, named: Mapping[str, Vec3] | None = None,
+              body: str = "") -> np.ndarray:
+    """A non-zero 3-vector (any length): a direction; or, with `named`
+    (`body`'s named axes), the name "body.AXIS" of one."""
+    value = table.table.get(key)
+    if named is not None and isinstance(value, str):
+        if value.count(".") != 1 or value.split(".")[0] != body:
+            table.fail(key, f"expected [x, y, z] or \"{body}.AXIS\" (an axis of {body!r}), got {shown(value)}")
+        axis = value.split(".")[1]
+        if axis not in named:
+            table.fail(key, f"{body!r} has no axis {axis!r} (its axes: {', '.join(sorted(named)) or 'none'})")
+        value = list(named[axis])
+    v = np.array(vector(table, key, what, value))
     if not np.abs(v).max() > 0:
         table.fail(key, "a degenerate direction: all three components are zero")
     # scaled by a power of two (exactly) to a largest component in [½, 1):
@@ -115,16 +126,28 @@ def rows(table: Reader, key: str, what: str) -> np.ndarray:
     value = table.table.get(key)
     if not isinstance(value, list) or len(value) != 3:
         table.fail(key, f"expected three rows of three numbers ({what}), got {shown(value)}")
-    M = np.array([vector(table, f"{key}[{k}]", "", row) for k, row in enumerate(value)])
+    M = np.array([vector(table, f"{key}[{k}]", "(a row)", row) for k, row in enumerate(value)])
     if not np.allclose(M @ M.T, np.eye(3), rtol=0, atol=ORTHONORMAL):
         table.fail(key, f"the rows are not orthonormal ({what}): M·Mᵀ differs from the identity by "
                         f"{np.abs(M @ M.T - np.eye(3)).max():.3g}")
     return M
 
 
-def _points(table: Reader) -> dict[str, Vec3]:
+def _axes(table: Reader) -> dict[str, Vec3]:
+    """A body's (or the ground's) named axes: non-zero directions."""
+    for key in table.table:
+        if not NAME.match(key):
+            table.fail(key, f"{key!r} is not a usable axis name")
+        direction(table, key, "in the body's axes")
+    return {key: vector(table, key) for key in table.table}
+
+
+def _points(table: Reader, reserved: str = "") -> dict[str, Vec3]:
+    """Named points; `reserved`, a key that is not one (the ground's axes)."""
     points = {}
     for key in table.table:
+        if key == reserved:
+            continue
         if not NAME.match(key):
             table.fail(key, f"{key!r} is not a usable point name")
         points[key] = vector(table, key)
@@ -156,12 +179,13 @@ def _between(reader: Reader, points: dict) -> tuple[tuple[str, Vec3], tuple[str,
 
 # -- the scene -------------------------------------------------------------------------------------
 
-def _bodies(top: Reader, points: dict) -> dict[str, tuple[float, Vec3, np.ndarray]]:
+def _bodies(top: Reader, points: dict, axes: dict) -> dict[str, tuple[float, Vec3, np.ndarray]]:
     """Per body its mass, centre of mass and inertia tensor; its named
-    points added to `points`."""
+    points and axes added to `points` and `axes`."""
     bodies = {}
     for name, body in _named(_array(top, "body", required=True), "body"):
-        body.only({"name", "mass", "com", "inertia", "principal", "principal_axes", "points"})
+        body.only({"name", "mass", "com", "inertia", "principal", "principal_axes", "points", "axes"})
+        axes[name] = _axes(body.sub("axes"))
         mass = body.number("mass", positive=True)
         com = vector(body, "com")
         bodies[name] = (mass, com, _inertia(body, mass))
@@ -235,20 +259,23 @@ def _assembly(table: Reader, names: list[str]) -> dict[str, tuple[Vec3, np.ndarr
     return poses
 
 
-def _frame(joint: Reader, axis_key: str, reference_key: str, fallback: np.ndarray | None = None) -> np.ndarray:
-    """The joint frame whose z is `axis_key` and x `reference_key` made
-    orthogonal to it (default: any perpendicular); `fallback` if no axis."""
+def _frame(joint: Reader, axis_key: str, reference_key: str, body: str, axes: dict,
+           fallback: np.ndarray | None = None) -> np.ndarray:
+    """The joint frame on `body` whose z is `axis_key` and x
+    `reference_key` made orthogonal to it (default: any perpendicular),
+    each a vector or one of the body's named axes; `fallback` if no axis."""
     if axis_key not in joint.table and fallback is not None:
         return fallback
-    axis = direction(joint, axis_key, "in the body's axes")
-    reference = direction(joint, reference_key, "in the body's axes") if reference_key in joint.table else None
+    what = f"in {body!r}'s axes"
+    axis = direction(joint, axis_key, what, axes[body], body)
+    reference = direction(joint, reference_key, what, axes[body], body) if reference_key in joint.table else None
     try:
         return frame_from_axis(axis, reference, joint.key(axis_key))
     except ValueError:
         joint.fail(reference_key, "is parallel to the axis: it cannot set the frame's x direction")
 
 
-def _joints(top: Reader, points: dict) -> tuple[SpatialJoint, ...]:
+def _joints(top: Reader, points: dict, axes: dict) -> tuple[SpatialJoint, ...]:
     joints = []
     for name, joint in _named(_array(top, "joint"), "joint"):
         kind = joint.string("type", choices=JOINT_KINDS)
@@ -265,8 +292,8 @@ def _joints(top: Reader, points: dict) -> tuple[SpatialJoint, ...]:
                 joint.fail(key, "goes with `axis`")
         if "reference_j" in joint.table and "axis_j" not in joint.table:
             joint.fail("reference_j", "goes with `axis_j`")
-        frame_i = _frame(joint, "axis", "reference", np.eye(3))
-        frame_j = _frame(joint, "axis_j", "reference_j", frame_i)
+        frame_i = _frame(joint, "axis", "reference", body_i, axes, np.eye(3))
+        frame_j = _frame(joint, "axis_j", "reference_j", body_j, axes, frame_i)
         damping = joint.number("damping", default=0.0, nonnegative=True)
         joints.append(SpatialJoint(name, kind, body_i, body_j, p_i, p_j, frame_i, frame_j, damping))
     return tuple(joints)

@@ -21,6 +21,7 @@ The reference's MechanismError keys are translated to the file's
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -47,7 +48,15 @@ def check_spatial(scenario: Scenario) -> None:
         else:
             SpatialSolver(scenario.scene).check(0.0, scenario.time.end)
     except MechanismError as exc:
-        raise ScenarioError(scenario.source, scenario.key(exc.key), exc.reason) from None
+        reason = exc.reason
+        mobility = re.match(r"the mobility is (\d+) ", reason)
+        if exc.key == "drive" and mobility and int(mobility.group(1)) > len(scenario.scene.drives):
+            reason += ("; fewer drives than degrees of freedom make an integrated run: give the bodies' "
+                       "velocities at t = 0 in [initial] (or a torque law)")
+        raise ScenarioError(scenario.source, scenario.key(exc.key), reason) from None
+    except np.linalg.LinAlgError:       # rows exactly dependent at some pose the continuation reached
+        raise ScenarioError(scenario.source, "time", "the Jacobian of the rows the reference keeps is exactly "
+                                                     "singular at a position of the run") from None
 
 
 def check_limits(scenario: Scenario) -> None:

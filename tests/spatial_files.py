@@ -21,6 +21,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from mechval.model.mechanism import GROUND                                  # noqa: E402
+from mechval.reference.spatial.rotation import frame_from_axis              # noqa: E402
 from mechval.reference.spatial.system import SpatialSystem                  # noqa: E402
 from mechval.scenarios.export import _value                                 # noqa: E402
 import spatial_benchmarks as benchmarks                                      # noqa: E402
@@ -42,7 +43,23 @@ class Builtin:
     velocities: dict = field(default_factory=dict)
 
 
+#: Each builder frame's own arguments to `frame_from_axis` (axis,
+#: reference), by the frame's id: the file states those, so that the
+#: frames it gives are the builder's bit for bit (a frame rebuilt from its
+#: own columns may differ by an ulp, and near Bennett's fold an axis 6e-19
+#: off moves the reference's accelerations by 1.3e-10 of their peak).
+FRAME_ARGUMENTS: dict[int, tuple] = {}
+
+
+def _recording(axis, reference=None, key: str = "axis"):
+    frame = frame_from_axis(axis, reference, key)
+    FRAME_ARGUMENTS[id(frame)] = (np.asarray(axis, dtype=float), None if reference is None
+                                  else np.asarray(reference, dtype=float), frame)
+    return frame
+
+
 def builtins() -> list[Builtin]:
+    mechanisms.frame_from_axis = _recording      # the builders' modules look it up at call time
     four, bennett, rssr = mechanisms.SphericalFourBar(), mechanisms.Bennett(), mechanisms.RSSR()
     tumbling, top, delta = mechanisms.TumblingBody(), mechanisms.HeavyTop(), mechanisms.Delta()
     bricard, flyball = benchmarks.Bricard(), benchmarks.FlyballGovernor()
@@ -102,6 +119,13 @@ def _rows(M) -> str:
     return _value([[float(x) for x in row] for row in np.asarray(M)])
 
 
+def _frame_keys(frame: np.ndarray, suffix: str) -> list[str]:
+    """`axis` and `reference` (with `suffix`): the builder's own arguments."""
+    axis, reference, built = FRAME_ARGUMENTS[id(frame)]
+    assert built is frame
+    return [f"axis{suffix} = {_vec(axis)}"] + ([] if reference is None else [f"reference{suffix} = {_vec(reference)}"])
+
+
 def spatial_file(b: Builtin) -> str:
     """The TOML text of a built-in spatial file."""
     system: SpatialSystem = b.builder.system
@@ -131,9 +155,9 @@ def spatial_file(b: Builtin) -> str:
         out += ["", "[[joint]]", f"name = {_value(j.name)}", f"type = {_value(j.kind)}",
                 f"between = {_value([f'{j.body_i}.{j.name}', f'{j.body_j}.{j.name}'])}"]
         if j.kind != "spherical":
-            out += [f"axis = {_vec(j.frame_i[:, 2])}", f"reference = {_vec(j.frame_i[:, 0])}"]
-            if not np.array_equal(j.frame_i, j.frame_j):
-                out += [f"axis_j = {_vec(j.frame_j[:, 2])}", f"reference_j = {_vec(j.frame_j[:, 0])}"]
+            out += _frame_keys(j.frame_i, "")
+            if j.frame_j is not j.frame_i:
+                out += _frame_keys(j.frame_j, "_j")
         if j.damping:
             out.append(f"damping = {_value(float(j.damping))}")
     for d in system.drives:

@@ -159,6 +159,58 @@ def test_many_mutated_builtins(capfd, tmp_path, name):
     run_all(capfd, tmp_path, cases(name, 12 if name == "twin/fourbar-long-run" else 250, seed=1))
 
 
+#: Spatial files (`mechanism = "spatial"`, scenarios/spatial/): simulated by
+#: the reference as every built-in (the loader's checks: keys, values,
+#: limits, the assembly, the mobility against the drives, a prescribed run
+#: followed to its end, a consistent initial state; then the run), and
+#: analysed (`mechval analyse`: the reference at ≥ 2001 instants, or the
+#: integrated run's kept rows).
+SPATIAL = [f"spatial/{p.stem}" for p in sorted(builtin_path("spatial/x").parent.glob("*.toml"))]
+
+
+def check_analyse_case(capfd, tmp_path, label: str, case: Case) -> int:
+    """`mechval analyse` in-process on the case: its report, or one line
+    naming the file, the key and the reason (exit 2); nothing else."""
+    path = tmp_path / f"{label}.toml"
+    path.write_text(case.toml(), encoding="utf-8")
+    capfd.readouterr()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            with deadline(HANG):
+                status = main(["analyse", str(path)])
+        except BaseException:
+            pytest.fail(f"{label}: {case.steps}\n{traceback.format_exc()}")
+    out, err = capfd.readouterr()
+    context = f"{label}: {case.steps}\nstdout: {out[:2000]}\nstderr: {err[:2000]}"
+    assert not caught, context + "\nwarnings: " + "; ".join(str(w.message) for w in caught)
+    if status == 0:
+        assert out.startswith("scenario ") and "mobility" in out and not err, context
+    else:
+        assert status == 2 and not out and err.startswith(f"mechval: error: {path}: ") and err.count("\n") == 1, \
+            context
+    return status
+
+
+@pytest.mark.parametrize("name", SPATIAL)
+def test_mutated_spatial_files_are_simulated_or_refused(capfd, tmp_path, name):
+    run_all(capfd, tmp_path, cases(name, 8))
+
+
+@pytest.mark.parametrize("name", SPATIAL)
+def test_mutated_spatial_files_are_analysed_or_refused(capfd, tmp_path, name):
+    statuses = [check_analyse_case(capfd, tmp_path, label, case) for label, case in cases(name, 4, seed=2)]
+    assert set(statuses) <= {0, 2}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SPATIAL)
+def test_many_mutated_spatial_files(capfd, tmp_path, name):
+    run_all(capfd, tmp_path, cases(name, 250, seed=1))
+    for label, case in cases(name, 40, seed=3):
+        check_analyse_case(capfd, tmp_path, label, case)
+
+
 def engine_document(name: str, engine: str) -> dict:
     """The built-in file with a short time grid (where it has a [time]
     table: engine runs take a second or less) and an [engines.ENGINE] table

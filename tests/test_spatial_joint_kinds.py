@@ -133,3 +133,13 @@ def test_fixed_joint_makes_one_body():
     torque_two = SpatialSolver(two).solve(t).frame["drive.T"].to_numpy()
     torque_one = SpatialSolver(one).solve(t).frame["drive.T"].to_numpy()
     assert np.abs(torque_two - torque_one).max() <= ROUNDING * np.abs(torque_one).max()
+
+
+def test_the_dynamics_at_a_single_instant_is_the_initial_state():
+    """An engine reads a free scene's start from the reference at its first
+    instant alone: the consistent initial state, no integration."""
+    system, _ = sliding_body("cylindrical", (0.0, 0.0, 1.0))
+    one = free_run(system, (0.0, 0.0, 0.3), (0.0, 0.0, 2.0), np.array([0.0]))[0]
+    many = free_run(system, (0.0, 0.0, 0.3), (0.0, 0.0, 2.0), np.array([0.0, 0.1]))[0]
+    assert len(one.frame) == 1
+    np.testing.assert_allclose(one.frame.iloc[0].to_numpy(), many.frame.iloc[0].to_numpy(), rtol=0, atol=1e-12)

@@ -20,6 +20,7 @@ from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
 from mechval.reference.spatial.rotation import frame_from_axis, quaternion_to_matrix
+from mechval.testing import SpatialContract
 from mechval.reference.spatial.system import (BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint,
                                               SpatialSystem, Spring)
 from spatial_benchmarks import Bricard, FlyballGovernor
@@ -32,7 +33,8 @@ pytestmark = pytest.mark.engine
 osim = pytest.importorskip("opensim")
 
 from mechval.engines.opensim.adapter import OpensimAdapter          # noqa: E402
-from mechval.engines.opensim.spatial_run import rate_of, run_spatial, scene_length      # noqa: E402
+from mechval.engines.opensim.spatial_run import run_spatial, scene_length      # noqa: E402
+from mechval.model.kinematics import spatial_peak_rate      # noqa: E402
 
 CLASSES = {"position": ("x", "y", "z"), "angle": ("qw", "qx", "qy", "qz"),
            "velocity": ("vx", "vy", "vz", "wx", "wy", "wz"), "acceleration": ("ax", "ay", "az", "alphax", "alphay",
@@ -54,7 +56,7 @@ def errors(system: SpatialSystem, t: np.ndarray) -> tuple[dict[str, float], obje
     ref = spatial_solution(system, t)
     # Ω from the reference on the test's grid, not the harness's dense one
     # (20001 instants: seconds of reference per scene)
-    rates = PeakRates(t, ref.frame, rate_of(system, ref.frame, t))
+    rates = PeakRates(t, ref.frame, spatial_peak_rate(spatial_mechanism(system), ref.frame, t))
     raw = adapter.run(mechanism, t, adapter.default_settings(mechanism, t, rates))
     groups: dict[str, list[str]] = {k: [f"{b.name}.{q}" for b in system.bodies for q in qs] for k, qs in CLASSES.items()}
     for column in system.reaction_columns():
@@ -405,3 +407,7 @@ def test_reversed_slide_and_universal_joints_meet_the_reference():
     shafts = hooke()
     check(dataclasses.replace(shafts, joints=(shafts.joints[0], reversed_joint(shafts.joints[1]), shafts.joints[2])),
           np.linspace(0.0, 3.0, 61))
+
+
+class TestSpatialContract(SpatialContract):
+    engine = "opensim"

@@ -199,7 +199,9 @@ def peak_rate(mechanism: Mechanism, motion: Mapping, t: np.ndarray) -> float:
 
 
 def spatial_peak_rate(mechanism: Mechanism, motion: Mapping, t: np.ndarray) -> float:
-    rate = 0.0
+    """Ω of a spatial scene: its bodies' rates as `peak_rate`, and
+    `spring_rate`."""
+    rate = spring_rate(mechanism.spatial)
     for body in mechanism.spatial.bodies:
         w = np.stack([np.asarray(motion[f"{body.name}.w{c}"], dtype=float) for c in "xyz"], axis=1)
         al = np.stack([np.asarray(motion[f"{body.name}.alpha{c}"], dtype=float) for c in "xyz"], axis=1)
@@ -207,3 +209,18 @@ def spatial_peak_rate(mechanism: Mechanism, motion: Mapping, t: np.ndarray) -> f
         rate = max(rate, np.linalg.norm(w, axis=1).max(), np.sqrt(np.linalg.norm(al, axis=1).max()),
                    np.cbrt(np.linalg.norm(jerk, axis=1).max()))
     return float(rate)
+
+
+def spring_rate(system) -> float:
+    """The largest √(Σk/m) over a spatial scene's bodies, Σk the stiffness
+    of the springs at the body (rad/s): a stiff spring's oscillation may
+    show only in a translation (benchmark A05's slider), which the rotation
+    rates miss (with them alone two engines' steps missed A05's
+    accelerations, their errors converging as dt²)."""
+    stiffness = {b.name: 0.0 for b in system.bodies}
+    for spring in system.springs:
+        for body in (spring.body_a, spring.body_b):
+            if body in stiffness:
+                stiffness[body] += spring.stiffness
+    return max((math.sqrt(k / system.body(name).mass) for name, k in stiffness.items()
+                if k > 0 and system.body(name).mass > 0), default=0.0)

@@ -109,8 +109,9 @@ class EngineTable:
 @dataclass(frozen=True)
 class Scenario:
     """A scenario file's facts (name, time grid, tolerances, engine tables)
-    and its scene (`mechval.model.scene`); a closed-form kind's file also gives
-    the scene's closed form (`mechval.reference.linkages.ClosedForm`)."""
+    and its scene (`mechval.model.scene`; a spatial file's is a
+    `mechval.reference.spatial.system.SpatialSystem`); a closed-form kind's
+    file also gives the scene's closed form (`mechval.reference.linkages.ClosedForm`)."""
 
     name: str
     description: str

@@ -5,7 +5,8 @@ instants inside the run, for the slider-crank inversions with a turning
 slide the quick-return time ratio, closed form and measured) with the
 distance to singularity (condition number of the velocity Jacobian), and
 the trust check of a closed form's reference at the loader. A scene without
-a closed form is analysed by `mechval.reference.planar.analysis`. References: Norton,
+a closed form is analysed by `mechval.reference.planar.analysis`, a spatial
+one by `mechval.reference.spatial.analysis`. References: Norton,
 *Design of Machinery*, §2.12 (Grashof), §4.10 (transmission angle), §4.12
 (toggle positions).
 """
@@ -18,6 +19,7 @@ import numpy as np
 
 from mechval.reference.linkages import ClosedForm, build_mechanism
 from mechval.reference.planar.analysis import analyse_planar, format_planar_analysis
+from mechval.reference.spatial.analysis import SpatialAnalysis, analyse_spatial, format_spatial_analysis
 from mechval.reference.adapter import raw_reference
 from mechval.model.scenario import Scenario, ScenarioError
 
@@ -77,6 +79,8 @@ def _refuse_nonfinite(scenario: Scenario, t: np.ndarray, values: np.ndarray, key
 
 
 def analyse(scenario: Scenario, samples: int | None = None) -> Analysis:
+    if scenario.mechanism == "spatial":       # prescribed or integrated: its structure either way
+        return analyse_spatial(scenario, samples)
     if scenario.forward_dynamics:
         raise ScenarioError(scenario.source, scenario.key("initial"),
                             "`mechval analyse` follows a prescribed motion; this scene's motion is integrated "
@@ -104,6 +108,8 @@ def analyse_closed_form(scenario: Scenario, closed: ClosedForm, samples: int | N
 
 
 def format_analysis(a: Analysis, max_toggles: int = 12) -> str:
+    if isinstance(a, SpatialAnalysis):
+        return format_spatial_analysis(a, max_toggles)
     if not isinstance(a, Analysis):
         return format_planar_analysis(a, max_toggles)
     lines = [

@@ -19,6 +19,7 @@ from mechval.adapter import as_float
 from mechval.reference.adapter import ReferenceAdapter
 from mechval.model.drive import DriveLaw
 from mechval.model.scene import signal_map as scene_signal_map
+from mechval.reference.spatial.mechanism import spatial_signal_map
 
 #: Most output instants per scenario. The loader itself evaluates the
 #: reference at every sample (closure and trust checks): at 10⁶ samples that
@@ -152,6 +153,8 @@ def reference_bytes(scenario: Scenario) -> float:
 def signal_count(scenario: Scenario) -> int:
     """Columns of the scenario's canonical signals (t included)."""
     closed = scenario.closed_form
+    if scenario.mechanism == "spatial":
+        return 1 + len(spatial_signal_map(scenario.scene))
     return 1 + len(closed.signal_map if closed else scene_signal_map(scenario.scene))
 
 

@@ -1,5 +1,8 @@
 """Exudyn adapter: a planar multibody model solved by Exudyn's implicit
-second-order solvers (model building in `model`).
+second-order solvers (model building in `model`). A spatial scene
+(`Mechanism.spatial`) goes to `spatial` (settings, run, read-out) and
+`spatial_model` (docs/engines.md, Exudyn, "Spatial scenes"); the rest of
+this docstring is about planar ones.
 
 Conversion of Exudyn's native outputs to the mechval convention:
 - Body motion: `NodeRigidBody2D` coordinates are displacements of (x_G,
@@ -48,12 +51,13 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
+from mechval.adapter import FEATURES, SPATIAL, PeakRates, as_float, steps_per_interval
 from mechval.model.kinematics import dense_grid
 from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
-from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step, peak_rates
+from mechval.reference.spatial.system import JOINT_KINDS
 from mechval.engines.exudyn.audit import audit_model
 from mechval.engines.exudyn.model import solve
 from mechval.engines.exudyn.run import force_scale, frame_of, index3_transient_steps, node_states, prepare, sample_rows
@@ -117,7 +121,9 @@ class ExudynAdapter(EngineAdapter):
     #: Every drive a coordinate constraint, springs and torques engine
     #: elements (`model`). Not redundant constraints: measured on
     #: Exudyn 1.13.6 with the parallelogram double four-bar (docs/engines.md).
-    features = frozenset(FEATURES) - {"redundant constraints"}
+    features = (frozenset(FEATURES) - {"redundant constraints"}) | {SPATIAL}
+    #: Every kind, each an `ObjectJointGeneric` (`spatial_model`).
+    spatial_joints = frozenset(JOINT_KINDS)
     feature_limits = {"redundant constraints": "its solver stops at the first step on the singular system "
                                                "Jacobian ('System Jacobian seems to be singular' with the index-2 "
                                                "solver, 'SolveDynamic terminated' with index-3)"}
@@ -159,6 +165,9 @@ class ExudynAdapter(EngineAdapter):
         its step rule and force scale read the forward-dynamics reference
         (`rates`: the prepared scene's, else computed here).
         """
+        if mechanism.spatial is not None:      # Ω from the spatial reference unless the harness gives it
+            from mechval.engines.exudyn.spatial import spatial_settings
+            return spatial_settings(mechanism, times, rates, RAD_PER_STEP)
         rates = peak_rates(mechanism, times) if rates is None else rates
         if mechanism.forward_dynamics:
             scale = force_scale(mechanism, rates.motion, rates.t)
@@ -189,9 +198,14 @@ class ExudynAdapter(EngineAdapter):
         return []
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        if mechanism.spatial is not None:
+            raise Unrepresentable("spatial", "the Exudyn model audit reads planar models only (no spatial audit yet)")
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.spatial is not None:
+            from mechval.engines.exudyn.spatial import run_spatial
+            return run_spatial(mechanism.spatial, times, settings)
         clock = time.perf_counter()
         model, simulation, t0 = prepare(mechanism, times, settings)
         build_time = time.perf_counter() - clock

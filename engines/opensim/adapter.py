@@ -41,7 +41,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
+from mechval.adapter import FEATURES, SPATIAL, PeakRates, as_float, steps_per_interval
 from mechval.model.mechanism import Mechanism
 from mechval.reference.spatial.system import JOINT_KINDS
 from mechval.settings import TIMESTEP, Choice, Number, Setting
@@ -90,7 +90,7 @@ class OpensimAdapter(EngineAdapter):
     #: force elements build every feature; Simbody projects redundant
     #: constraints (the parallelogram double four-bar) and its multipliers'
     #: body resultants meet the reference (tests/test_opensim.py).
-    features = frozenset(FEATURES)
+    features = frozenset(FEATURES) | {SPATIAL}
     #: The tables a run keeps (per-sample Python lists of the raw columns,
     #: the frame, the signals): measured 10.5 copies of the samples × signals
     #: table (peak RSS of fourbar-seed at 10 rad/s, 30001 against 601
@@ -112,12 +112,6 @@ class OpensimAdapter(EngineAdapter):
         run's peak rate Ω (`default_step`; `rates`: the prepared scene's,
         else computed here), at most the sample interval."""
         interval = float(times[1] - times[0]) if len(times) > 1 else 1.0
-        if mechanism.spatial is not None and len(times) > 1:
-            from mechval.engines.opensim.spatial_run import peak_rate
-            # a planar PeakRates of a spatial scene reads no bodies (Ω = 0)
-            rate = rates.rate if rates is not None and rates.rate > 0 else peak_rate(mechanism.spatial, times)
-            return {"integrator": "RungeKuttaMerson", "accuracy": ACCURACY, "constraint_tolerance": CONSTRAINT_TOLERANCE,
-                    "max_step": default_step(mechanism, times, MAX_STEP_RAD, interval, rate)}
         rate = (peak_rates(mechanism, times) if rates is None else rates).rate if len(times) > 1 else None
         max_step = default_step(mechanism, times, MAX_STEP_RAD, interval, rate) if rate is not None else interval
         return {"integrator": "RungeKuttaMerson", "accuracy": ACCURACY,

@@ -32,7 +32,6 @@ import numpy as np
 import opensim as osim
 import pandas as pd
 
-from mechval.model.kinematics import dense_grid
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.dynamics import SpatialDynamics
 from mechval.reference.spatial.mechanism import spatial_solution
@@ -54,25 +53,6 @@ from mechval.engines.opensim.spatial_model import CHARTED, DAMPED, SpatialModel,
 RECHART_ANGLE = 1.0
 
 World = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]   # body → R, origin, v, ω
-
-
-def peak_rate(system: SpatialSystem, times: np.ndarray) -> float:
-    """Ω of the step rule from the reference motion on the dense grid."""
-    t = dense_grid(times)
-    return rate_of(system, spatial_solution(system, t).frame, t)
-
-
-def rate_of(system: SpatialSystem, frame: pd.DataFrame, t: np.ndarray) -> float:
-    """Ω of a motion at instants t: the largest |ω|, √|α| and ∛|jerk| over
-    the bodies."""
-    rate = 0.0
-    for body in system.bodies:
-        w = frame[[f"{body.name}.w{c}" for c in "xyz"]].to_numpy()
-        al = frame[[f"{body.name}.alpha{c}" for c in "xyz"]].to_numpy()
-        jerk = np.gradient(al, t, axis=0)
-        norm = lambda v: float(np.linalg.norm(v, axis=1).max())    # noqa: E731
-        rate = max(rate, norm(w), math.sqrt(norm(al)), np.cbrt(norm(jerk)))
-    return rate
 
 
 def start_world(system: SpatialSystem, times: np.ndarray) -> World:

@@ -53,13 +53,15 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, as_float, steps_per_interval
+from mechval.adapter import FEATURES, SPATIAL, as_float, steps_per_interval
 from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from mechval.engines.base import EngineAdapter, PeakRates, RawRun, default_step, peak_rates
 from mechval.engines.pybullet.audit import audit_model
 from mechval.engines.pybullet.run import run_model
+from mechval.engines.pybullet.spatial import run_spatial
+from mechval.engines.pybullet.spatial_build import TREE_KINDS
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
 #: base.default_step). PyBullet's rocker sensor converges only as O(dt)
@@ -84,7 +86,10 @@ class PybulletAdapter(EngineAdapter):
     cost_variants = {"Dantzig": {}}
     #: Every drive is a position-controlled leaf joint; spring-dampers and
     #: body torques are external loads set every step (Stepper).
-    features = frozenset(FEATURES)
+    features = frozenset(FEATURES) | {SPATIAL}
+    #: Spatial scenes (`spatial`): PyBullet's own joints, composite kinds as
+    #: chains through massless links, loops closed at spherical or revolute joints.
+    spatial_joints = TREE_KINDS
 
     step_settings = ("timestep", "preroll_steps")
     output_copies, bytes_per_step = 32, 32
@@ -111,9 +116,13 @@ class PybulletAdapter(EngineAdapter):
         }
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        if mechanism.spatial is not None:
+            raise NotImplementedError(f"{self.name}: no model audit of spatial scenes yet")
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.spatial is not None:
+            return run_spatial(mechanism.spatial, times, settings)
         return run_model(mechanism, times, settings)
 
 

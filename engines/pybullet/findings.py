@@ -208,3 +208,53 @@ def probe_non_leaf_sensor() -> Measurement:
 
 
 PROBES = {SLIDE_SENSOR.key: probe_slide_sensor, NON_LEAF_SENSOR.key: probe_non_leaf_sensor}
+
+
+EXPLICIT_GYROSCOPIC = Finding(
+    key="pybullet.explicit-gyroscopic",
+    engine=ENGINE,
+    title="Free body: the gyroscopic term is integrated explicitly, energy and |L| grow O(dt)",
+    wrong=("A torque-free body spinning about a non-principal axis gains kinetic energy and angular "
+           "momentum at a rate proportional to the step: PyBullet's multibody step takes ω × Jω at the "
+           "step's start (explicit), so the attitude of a free body is first order in dt. The tumbling "
+           "T-handle through its intermediate-axis flip misses the quaternion bound (1e-3) by 3.5× at "
+           "mechval's step rule, 1.8× at half its step; its ω and α stay within their bounds."),
+    how=("A free body (1 kg, principal moments 0.01, 0.02, 0.03 kg·m², no damping, no gravity) from "
+         "ω = (0, 4, 0.2) rad/s in its principal axes; 2 s at a 1e-3 s step. Exact: kinetic energy "
+         "conserved."),
+    figure="relative kinetic-energy gain after 2 s",
+    present_above=1e-4,
+    since="3.2.7 (earliest measured)",
+    workaround="a finer step (the error halves with it); mechval reports the miss (tests/test_spatial_pybullet.py)",
+)
+
+FINDINGS = FINDINGS + (EXPLICIT_GYROSCOPIC,)
+
+
+def tumbling_energy_gain(dt: float = 1e-3, duration: float = 2.0) -> float:
+    """EXPLICIT_GYROSCOPIC's probe: the free body's relative energy gain."""
+    inertia, omega = np.array([0.01, 0.02, 0.03]), np.array([0.0, 4.0, 0.2])
+    client = p.connect(p.DIRECT)
+    try:
+        p.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, physicsClientId=client)
+        uid = p.createMultiBody(baseMass=1.0, physicsClientId=client)
+        p.changeDynamics(uid, -1, localInertiaDiagonal=tuple(inertia), linearDamping=0.0, angularDamping=0.0,
+                         physicsClientId=client)
+        p.resetBaseVelocity(uid, (0.0, 0.0, 0.0), tuple(omega), physicsClientId=client)
+        for _ in range(int(round(duration / dt))):
+            p.stepSimulation(physicsClientId=client)
+        q = p.getBasePositionAndOrientation(uid, physicsClientId=client)[1]
+        w = np.array(p.getBaseVelocity(uid, physicsClientId=client)[1])
+    finally:
+        p.disconnect(client)
+    body = np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3).T @ w
+    return float(inertia @ body ** 2 / (inertia @ omega ** 2) - 1.0)
+
+
+def probe_explicit_gyroscopic() -> Measurement:
+    """EXPLICIT_GYROSCOPIC on the installed version: the energy gain (exact 0)."""
+    gain = tumbling_energy_gain()
+    return Measurement(EXPLICIT_GYROSCOPIC, _version(), abs(gain), gain, 0.0)
+
+
+PROBES = {**PROBES, EXPLICIT_GYROSCOPIC.key: probe_explicit_gyroscopic}

@@ -24,6 +24,7 @@ from typing import Mapping
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from mechval.reference.dynamics import MAX_EVALUATIONS
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_matrix, world_inertia
 from mechval.reference.spatial.joints import Pose
@@ -94,7 +95,7 @@ class SpatialDynamics:
             miss = J @ w[0].ravel() - out["rhs"][0, self.rows]
             w[0] = (w[0].ravel() - J.T @ np.linalg.solve(J @ J.T, miss)).reshape(nb, 6)
         self.t0, self.pose0, self.w0 = t0, pose, w
-        self.evaluations = 0
+        self.evaluations, self.calls, self.limit = 0, 0, None
 
     def accelerations(self, pose: Pose, w: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """ẇ (N, nb, 6) and λ (N, m) from the square system [M Φqᵀ; Φq 0]."""
@@ -119,7 +120,23 @@ class SpatialDynamics:
         return Pose(G, quaternion_to_matrix(p)), w
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        self.calls += 1
+        if self.limit and self.calls % (self.limit // 10) == 0:
+            self._check_progress(t)
         return self._rates(t, y[None])[0]
+
+    def _check_progress(self, t: float) -> None:
+        """Refuse a run that reaches the evaluation limit (as the planar
+        integration's, README "Limits"), or, from a tenth of it on, one
+        that at its pace would need ten times the limit: a hopelessly stiff
+        scene ends in seconds rather than after the whole limit."""
+        start, end = self.span
+        done = (t - start) / (end - start)
+        needed = self.calls / done if done > 0 else np.inf
+        if self.calls >= self.limit or needed > 10 * self.limit:
+            raise MechanismError("time.end", f"the reference's integration reached only t = {t:.6g} s of "
+                                             f"{end:g} s in {self.calls:,} evaluations (the run would need about "
+                                             f"{needed:.3g}, the limit is {self.limit:,}); shorten time.end")
 
     def _rates(self, t: float, Y: np.ndarray) -> np.ndarray:
         """ẏ at states Y (N, 13·nb), all at time t, in one batched solve."""
@@ -153,11 +170,24 @@ class SpatialDynamics:
         t = np.asarray(t, dtype=float)
         if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) <= 0) or t[0] != self.t0:
             raise MechanismError("time", "instants must be finite, increasing and start at the initial state's")
-        run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method=method, t_eval=t,
-                        rtol=rtol, atol=atol, **({"jac": self._jacobian} if method == "Radau" else {}))
-        if run.status != 0:
-            raise MechanismError("time", f"the integration stopped: {run.message}")
-        pose, w = self._unpack(run.y.T)
+        # the explicit method's evaluations are bounded as the planar
+        # integration's; the implicit one is for stiff runs a caller chooses
+        self.calls, self.limit = 0, MAX_EVALUATIONS if method == "DOP853" else None
+        self.span = (float(t[0]), float(t[-1]))
+        if len(t) == 1:         # the initial state itself (scipy integrates no empty span)
+            states, steps = self.initial_vector()[None], 1
+        else:
+            try:
+                with np.errstate(over="raise", invalid="raise", divide="raise"):
+                    run = solve_ivp(self._rhs, (t[0], t[-1]), self.initial_vector(), method=method, t_eval=t,
+                                    rtol=rtol, atol=atol, **({"jac": self._jacobian} if method == "Radau" else {}))
+            except (FloatingPointError, np.linalg.LinAlgError) as exc:
+                raise MechanismError("time", f"the integration fails ({exc}): loads out of scale for the masses "
+                                             "and sizes, or a position where the joints' rows turn dependent") from None
+            if run.status != 0:
+                raise MechanismError("time", f"the integration stopped: {run.message}")
+            states, steps = run.y.T, int(run.t.size)
+        pose, w = self._unpack(states)
         dw, lam = self.accelerations(pose, w, t)
         out = self.c.evaluate(pose, t, w)
         scaling = self.solver.scaling
@@ -167,7 +197,7 @@ class SpatialDynamics:
         state = State(t, pose, w, dw, lam, out["jac"], tuple(self.rows))
         frame, missing = self.solver.frame_of(state, self.found)
         E = energy(self.system, pose, w)
-        facts = {"method": METHODS[method], "rtol": rtol, "atol": atol, "steps": int(run.t.size),
+        facts = {"method": METHODS[method], "rtol": rtol, "atol": atol, "steps": steps,
                  "evaluations": self.evaluations, "constraint_drift_max": float(drift_q),
                  "velocity_drift_max": float(drift_v), "energy_change_max": float(np.abs(E - E[0]).max()),
                  "mobility": self.found.mobility, "redundant_constraints": self.found.redundant}

@@ -46,8 +46,12 @@ class _Motion:
 def spatial_signal_map(system: SpatialSystem) -> dict[str, str]:
     """Canonical signal → raw column: the same names (motion, then
     reactions, drive efforts and torque laws, and with redundant
-    constraints each body's resultant, `mechval.reference.spatial.resultants`)."""
-    names = system.motion_columns() + system.reaction_columns()
+    constraints each body's resultant, `mechval.reference.spatial.resultants`).
+    A spherical joint's moment is zero by its kind, its values rounding:
+    not a signal (judged relative to its class's peak, rounding would be
+    the bound)."""
+    torque_free = {f"{j.name}.M{c}" for j in system.joints if j.kind == "spherical" for c in "xyz"}
+    names = system.motion_columns() + [c for c in system.reaction_columns() if c not in torque_free]
     return {name: name for name in names + (resultant_columns(system) if has_redundant_constraints(system) else [])}
 
 

@@ -59,8 +59,10 @@ SINGULAR_CONDITION = 1e10
 #: conditioned there: Bennett's linkage folding at θ1 = π).
 REPICK_CONDITION = 1e3
 #: Most continuation nodes one run may take (as the planar reference's
-#: `positions.MAX_STEPS`): a run longer than this is refused naming time.end.
-MAX_NODES = 30_000
+#: `positions.MAX_STEPS`; README, "Limits"): 2.7–4.5 ms of CPU a node and
+#: 25–36 nodes a turn of the spherical four-bar and Bennett's linkage, so a
+#: refused run ends within the fuzz tests' 120 s bound on one case.
+MAX_NODES = 10_000
 METHOD = "absolute coordinates, rotations on the group, Newton continuation, multipliers (Nikravesh 1988, Haug 1989)"
 
 

@@ -77,13 +77,13 @@ def test_the_audit_reads_the_new_elements_back(name, element, quantity):
 
 
 def test_declares_every_feature_and_the_harness_still_refuses_undeclared_ones():
-    """MuJoCo declares all FEATURES; a MuJoCo adapter that declared none
+    """MuJoCo declares all FEATURES and spatial scenes; a MuJoCo adapter that declared none
     would still be refused each, naming the key (the refusal is the
     harness's, not the adapter's)."""
-    from mechval.adapter import FEATURES
+    from mechval.adapter import FEATURES, SPATIAL
     from mechval.engines.mujoco.adapter import MujocoAdapter
     from mechval.model.scenario import ScenarioError
-    assert MujocoAdapter.features == frozenset(FEATURES)
+    assert MujocoAdapter.features == frozenset(FEATURES) | {SPATIAL}
 
     class Undeclared(MujocoAdapter):
         features = frozenset()

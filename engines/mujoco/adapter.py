@@ -97,7 +97,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 import pandas as pd
 
-from mechval.adapter import FEATURES, PeakRates, as_float, ceil_or_inf, steps_per_interval
+from mechval.adapter import FEATURES, SPATIAL, PeakRates, as_float, ceil_or_inf, steps_per_interval
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
 from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
@@ -105,6 +105,8 @@ from mechval.settings import TIMESTEP, Choice, Number, Setting
 from mechval.engines.mujoco.audit import audit_model
 from mechval.engines.mujoco.model import INTEGRATORS, SOLIMP
 from mechval.engines.mujoco.run import Model, warnings_silenced
+from mechval.engines.mujoco.spatial import run_spatial
+from mechval.reference.spatial.system import JOINT_KINDS
 
 MODES = ("forward", "inverse")
 class MujocoAdapter(EngineAdapter):
@@ -146,7 +148,11 @@ class MujocoAdapter(EngineAdapter):
     #: Each built by MuJoCo itself (module docstring): a drive per clock and
     #: joint equality (hinge or slide), spring-dampers as spatial tendons,
     #: body torques as constant actuator forces on fixed tendons.
-    features: ClassVar[frozenset[str]] = frozenset(FEATURES)
+    features: ClassVar[frozenset[str]] = frozenset(FEATURES) | {SPATIAL}
+    #: Every kind, in the tree (`mechval.engines.mujoco.spatial_model`); a
+    #: loop closes only at a spherical, revolute or universal joint (a loop
+    #: of other kinds alone is refused when the model is built).
+    spatial_joints: ClassVar[frozenset[str]] = frozenset(JOINT_KINDS)
     step_settings = ("timestep", "refine", "solref_steps", "preroll_timeconsts")
     output_copies, bytes_per_step = 24, 128       # the rollout keeps every state
 
@@ -202,9 +208,13 @@ class MujocoAdapter(EngineAdapter):
         return []
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
+        if mechanism.spatial is not None:
+            raise NotImplementedError("mujoco: no model audit of spatial scenes yet")
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.spatial is not None:
+            return run_spatial(mechanism.spatial, times, settings)
         if settings["mode"] not in MODES:
             raise ValueError(f"mujoco: unknown mode {settings['mode']!r} (forward, inverse)")
         start = time.perf_counter()

@@ -30,10 +30,12 @@ FIRST_PIECE, MIN_PIECE, MAX_PIECE = 1000, 100, 1_000_000
 
 
 def rollout_in_pieces(m: mujoco.MjModel, d: mujoco.MjData, state0: np.ndarray, control: np.ndarray | None,
-                      nstep: int) -> np.ndarray:
+                      nstep: int, control_spec: int | None = None) -> np.ndarray:
     """(nstep, nstate) full physics states after each step from `state0`
-    (`control`: (nstep, nu) or None), as `rollout.rollout` gives them for
-    one trajectory."""
+    (`control`: (nstep, nu) or None; (nstep, size of `control_spec`) with
+    a spec, e.g. controls and applied body forces), as `rollout.rollout`
+    gives them for one trajectory."""
+    spec = {} if control_spec is None else {"control_spec": control_spec}
     states = np.empty((nstep, len(state0)))
     state, warmstart, done, piece = state0, None, 0, FIRST_PIECE
     while done < nstep:
@@ -41,7 +43,7 @@ def rollout_in_pieces(m: mujoco.MjModel, d: mujoco.MjData, state0: np.ndarray, c
         clock = time.perf_counter()
         states[done:done + n] = rollout.rollout(
             m, d, state[None], None if control is None else control[None, done:done + n], nstep=n,
-            initial_warmstart=warmstart)[0][0]
+            initial_warmstart=warmstart, **spec)[0][0]
         elapsed = time.perf_counter() - clock
         done += n
         state, warmstart = states[done - 1], d.qacc_warmstart.copy()[None]

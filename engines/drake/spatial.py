@@ -15,24 +15,24 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 
-from mechval.model.kinematics import dense_grid
+from mechval.model.kinematics import STEP_RULE_GRID, dense_grid
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.mechanism import spatial_solution
 from mechval.reference.spatial.rotation import matrix_to_quaternion
 from mechval.reference.spatial.system import SpatialSystem
 
-from mechval.engines.base import RawRun, RunInfo, Unrepresentable
+from mechval.engines.base import RawRun, RunInfo, Unrepresentable, default_step
 from mechval.engines.drake.run import STEP_MARGIN
 from mechval.engines.drake.spatial_model import SpatialModel, build, joint_frames, world_pose
 from mechval.engines.drake.spatial_reactions import Sample, reaction_columns
 from mechval.engines.drake.spatial_tree import spatial_topology
 
 
-def spatial_rate(system: SpatialSystem, times: np.ndarray) -> float:
+def spatial_rate(system: SpatialSystem, times: np.ndarray, dense: int = STEP_RULE_GRID) -> float:
     """Ω of the step rule for a spatial scene: the largest over the run and
     the bodies of |ω|, √|α| and ∛|jerk| (rad/s), from the reference on the
     step rule's dense grid (`mechval.model.kinematics.step_rate`)."""
-    t = dense_grid(times)
+    t = dense_grid(times, dense)
     frame = spatial_solution(system, t).frame
     rate = 0.0
     for b in system.bodies:
@@ -42,6 +42,44 @@ def spatial_rate(system: SpatialSystem, times: np.ndarray) -> float:
         norm = lambda x: np.linalg.norm(x, axis=1).max()
         rate = max(rate, norm(w), np.sqrt(norm(al)), np.cbrt(norm(jerk)))
     return float(rate)
+
+
+#: The continuous plant's target accuracy (Drake's integrator's
+#: relative error measure): the heavy top at 200 rad/s keeps its
+#: attitude within 6e-7 of the reference over 1 s with it, 6e-6 at 1e-4
+#: (docs/engines.md, Drake, "Spatial scenes").
+ACCURACY = 1e-6
+
+
+def has_constraints(system: SpatialSystem) -> bool:
+    """A prescribed drive or a loop: what only the discrete plant takes."""
+    if system.drives:
+        return True
+    try:
+        return bool(spatial_topology(system).cuts)
+    except Unrepresentable:
+        return True
+
+
+def spatial_defaults(system: SpatialSystem, times: np.ndarray, rate: float | None = None) -> dict[str, Any]:
+    """The planar defaults (the adapter's `default_settings`: the shared
+    step rule with Ω = `rate`, else `spatial_rate`), and the integrator: a
+    continuous plant with RK3 where the scene allows it (no loop, no
+    prescribed drive), whose error control holds the gyroscopic motion of
+    a free or spinning body that SAP's first-order step does not (the
+    T-handle's attitude: 8e-3 off after 4 s at the rule's step with SAP,
+    7e-7 with RK3: docs/engines.md); SAP otherwise."""
+    rate = spatial_rate(system, times) if rate is None else rate
+    return {
+        "timestep": default_step(None, times, rate=rate),
+        "refine": 1,
+        "drive_stiffness": 1e4,
+        "drive_damping": 0.0,
+        "preroll_steps": 0 if system.forward_dynamics else 20,
+        "near_rigid_threshold": 1.0,
+        "integrator": "sap" if has_constraints(system) else "rk3",
+        "accuracy": ACCURACY,
+    }
 
 
 def start_of(system: SpatialSystem, times: np.ndarray, steps: int, dt: float) -> tuple[float, int, dict]:
@@ -115,6 +153,27 @@ def set_start(model: SpatialModel, context, start: Mapping[str, np.ndarray], t0:
     plant.SetVelocities(context, v - 0.5 * dt * vdot)
 
 
+#: A ball constraint whose relative Jacobian is below this (m/s per unit
+#: generalized speed, over the lever) at the start is switched off.
+STILL = 1e-9
+
+
+def switch_off_still_balls(model: SpatialModel, context, lever: float) -> list[int]:
+    """Switch off each ball constraint whose two points the tree holds
+    still (relative Jacobian zero at the start: the points lie on their
+    bodies' fixed axes, as at the cross of Hooke's joint): wholly
+    redundant, and SAP blows up on it (finding
+    drake.ball-constraint-between-fixed-points). Their indices."""
+    plant, world, off = model.plant, model.plant.world_frame(), []
+    for k, (cid, bi, pi, bj, pj) in enumerate(model.balls):
+        jac = lambda body, p: plant.CalcJacobianTranslationalVelocity(context, JacobianWrtVariable.kV,
+                                                                      body.body_frame(), p, world, world)
+        if np.abs(jac(bj, pj) - jac(bi, pi)).max() <= STILL * lever:
+            plant.SetConstraintActiveStatus(context, cid, False)
+            off.append(k)
+    return off
+
+
 def read(model: SpatialModel, context) -> Sample:
     """Everything at the current state x_n (ports live: the accelerations,
     reactions and actuation of the step from t_n)."""
@@ -149,7 +208,8 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     dt = float(settings["timestep"]) / int(settings["refine"])
     topo = spatial_topology(system)
     t0, preroll, start = start_of(system, times, int(settings["preroll_steps"]), dt)
-    model = build(system, topo, settings, t0, float(times[-1]), start, lever(system))
+    arm = lever(system)
+    model = build(system, topo, settings, t0, float(times[-1]), start, arm)
     build_time = time.perf_counter() - clock
     simulator = Simulator(model.diagram)
     continuous = settings.get("integrator", "sap") != "sap"
@@ -166,6 +226,7 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     context.SetTime(0.0)               # Drake's clock is 0 at t0 (the planar `run`)
     plant_context = model.plant.GetMyMutableContextFromRoot(context)
     set_start(model, plant_context, start, t0, shift)
+    still = switch_off_still_balls(model, plant_context, arm)
     simulator.Initialize()
     rows, clock = [], time.perf_counter()
     for n in np.round((times - t0) / dt).astype(int):
@@ -177,7 +238,8 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     facts = {"wall_time_s": wall, "build_time_s": build_time, "step": dt, "preroll_steps_used": preroll,
              "steps": int(round((times[-1] - t0) / dt)),
              "drive_gains": " ".join(f"{kp:.6g} {kd:.6g}" for kp, kd in model.gains) or "none",
-             "cut_joints": " ".join(j.name for j in topo.cuts) or "none"}
+             "cut_joints": " ".join(j.name for j in topo.cuts) or "none",
+             "ball_constraints_switched_off": len(still)}
     blown = ~np.isfinite(frame.to_numpy(dtype=float)).all(axis=1)
     if blown.any():
         first = int(np.argmax(blown))

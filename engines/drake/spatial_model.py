@@ -74,6 +74,8 @@ class SpatialModel:
     actuators: tuple
     gains: tuple
     dt: float
+    #: per ball constraint (id, body_i, point on it, body_j, point on it)
+    balls: tuple = ()
     desired: Any = None                  # kept alive: TrajectorySource holds a reference only
 
 
@@ -148,8 +150,7 @@ def build(system: SpatialSystem, topo: SpatialTopology, settings: Mapping[str, A
     for s in system.springs:
         plant.AddForceElement(LinearSpringDamper(bodies[s.body_a], list(s.point_a), bodies[s.body_b],
                                                  list(s.point_b), s.free_length, s.stiffness, s.damping))
-    for c in topo.cuts:
-        close_loop(plant, bodies, c, lever)
+    balls = [ball for c in topo.cuts for ball in close_loop(plant, bodies, c, lever)]
     actuators = tuple(plant.AddJointActuator(f"d{k}", joints[d.joint][0], np.inf) for k, d in enumerate(system.drives))
     gains = tuple(drive_gains(system, topo, settings, start, dt))
     for actuator, (kp, kd) in zip(actuators, gains):
@@ -166,23 +167,27 @@ def build(system: SpatialSystem, topo: SpatialTopology, settings: Mapping[str, A
         loads = builder.AddSystem(SceneLoads(system, bodies, t0))
         builder.Connect(plant.get_body_poses_output_port(), loads.get_input_port())
         builder.Connect(loads.get_output_port(), plant.get_applied_spatial_force_input_port())
-    return SpatialModel(system, plant, builder.Build(), topo, bodies, joints, actuators, gains, dt, desired)
+    return SpatialModel(system, plant, builder.Build(), topo, bodies, joints, actuators, gains, dt, tuple(balls),
+                        desired)
 
 
-def close_loop(plant: MultibodyPlant, bodies: Mapping[str, Any], c: SpatialJoint, lever: float) -> None:
-    """The constraints of a cut joint (module docstring)."""
+def close_loop(plant: MultibodyPlant, bodies: Mapping[str, Any], c: SpatialJoint, lever: float) -> list[tuple]:
+    """The constraints of a cut joint (module docstring); its ball
+    constraints as (id, body_i, point, body_j, point)."""
     bi, bj = bodies[c.body_i], bodies[c.body_j]
     pi, pj = np.asarray(c.point_i, float), np.asarray(c.point_j, float)
     zi, zj = np.asarray(c.frame_i, float)[:, 2], np.asarray(c.frame_j, float)[:, 2]
     if c.kind == "fixed":
         plant.AddWeldConstraint(bi, RigidTransform(RotationMatrix(np.asarray(c.frame_i, float)), pi),
                                 bj, RigidTransform(RotationMatrix(np.asarray(c.frame_j, float)), pj))
-        return
-    plant.AddBallConstraint(bi, pi, bj, pj)
+        return []
+    ball = lambda a, b: (plant.AddBallConstraint(bi, a, bj, b), bi, a, bj, b)
+    balls = [ball(pi, pj)]
     if c.kind == "revolute":
-        plant.AddBallConstraint(bi, pi + lever * zi, bj, pj + lever * zj)
+        balls.append(ball(pi + lever * zi, pj + lever * zj))
     elif c.kind == "universal":
         plant.AddDistanceConstraint(bi, pi + lever * zi, bj, pj + lever * zj, np.sqrt(2.0) * lever)
+    return balls
 
 
 def drive_gains(system: SpatialSystem, topo: SpatialTopology, settings: Mapping[str, Any],

@@ -124,6 +124,9 @@ class DrakeAdapter(EngineAdapter):
             "drive_damping": 0.0,
             "preroll_steps": 0 if mechanism.forward_dynamics else 20,
             "near_rigid_threshold": 1.0,
+            # The planar plant is always SAP; `accuracy` is read by "rk3" only.
+            "integrator": "sap",
+            "accuracy": 1e-6,
         }
 
     def check_settings(self, mechanism: Mechanism, settings: Mapping[str, Any]) -> list[tuple[str, str]]:

@@ -179,10 +179,17 @@ def test_fixed_and_universal_joints():
                             SpatialJoint("W", "fixed", "crank", "plate", (0.25, 0.0, 0.0), (0.25, 0.0, 0.0))),
                            (SpatialDrive("O", law),), GRAVITY)
     assert_within(errors(welded, np.linspace(0.0, 1.0, 21))[0])
+    hooke = hooke_joint()
+    assert_within(errors(hooke, np.linspace(0.0, 1.0, 21))[0])
+
+
+def hooke_joint() -> SpatialSystem:
+    """Hooke's joint between two shafts on the ground, the input driven
+    (tests/test_spatial_joint_kinds.py)."""
     beta = np.radians(35.0)
     a2 = np.array([np.cos(beta), np.sin(beta), 0.0])
     e_b = np.cross([0.0, 0.0, 1.0], a2)
-    hooke = SpatialSystem(
+    return SpatialSystem(
         "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
                   SpatialBody("output", 1.0, tuple(0.2 * a2), inertia(31))),
         (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
@@ -190,7 +197,6 @@ def test_fixed_and_universal_joints():
                       frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
          revolute("R2", GROUND, "output", 0.3 * a2, a2, e_b)),
         (SpatialDrive("R1", DriveLaw(0.0, 2.0, 0.7)),), GRAVITY)
-    assert_within(errors(hooke, np.linspace(0.0, 1.0, 21))[0])
 
 
 def spring_pendulum() -> SpatialSystem:
@@ -315,3 +321,17 @@ def test_a_ball_constraint_between_still_points_still_blows_up_sap():
     from mechval.engines.drake.findings import FIXED_POINT_BALL, probe_fixed_point_ball
     measured = probe_fixed_point_ball()
     assert measured.present, f"fixed in Drake {measured.version}: update {FIXED_POINT_BALL.key}"
+
+
+def test_a_blown_up_run_is_nan_from_where_it_came_apart():
+    """A run that SAP stops (here gravity 1e12 m/s² on the RSSR: "the
+    initial guess for line search is NaN", in the pre-roll; 1e8 runs
+    through) is NaN from the first sample it did not reach, with the
+    instant and SAP's reason in its facts, not a traceback."""
+    system = dataclasses.replace(RSSR().system, gravity=(0.0, 0.0, -1e12))
+    t = np.linspace(0.0, 0.1, 11)
+    raw = run_spatial(system, t, spatial_defaults(system, t, 2.0))
+    first = raw.info.facts["blown_up_at"]
+    values = raw.frame.drop(columns="t").to_numpy()
+    assert "NaN" in raw.info.facts["stopped"]
+    assert 0.0 <= first <= 0.1 and np.isnan(values[t >= first]).all() and np.isfinite(values[t < first]).all()

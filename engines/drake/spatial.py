@@ -24,7 +24,7 @@ from mechval.reference.spatial.system import SpatialSystem
 from mechval.engines.base import RawRun, RunInfo, Unrepresentable, default_step
 from mechval.engines.drake.run import STEP_MARGIN
 from mechval.engines.drake.spatial_model import SpatialModel, build, joint_frames, world_pose
-from mechval.engines.drake.spatial_reactions import Sample, reaction_columns
+from mechval.engines.drake.spatial_reactions import Motion, Sample, reaction_columns
 from mechval.engines.drake.spatial_tree import spatial_topology
 
 
@@ -201,6 +201,14 @@ def read(model: SpatialModel, context) -> Sample:
                   joints, plant.get_net_actuation_output_port().Eval(context).copy())
 
 
+def nan_sample(model: SpatialModel) -> Sample:
+    """A sample of NaN: where SAP stopped before the first sample."""
+    nan3, bodies = np.full(3, np.nan), model.system.bodies
+    return Sample({b.name: (nan3, np.full((3, 3), np.nan)) for b in bodies},
+                  {b.name: (nan3, nan3) for b in bodies}, {b.name: (nan3, nan3) for b in bodies},
+                  {name: (nan3, nan3, nan3) for name in model.joints}, np.full(len(model.actuators), np.nan))
+
+
 def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
     """Build, start from the reference, step to every sample, read."""
     times = np.asarray(times, dtype=float)
@@ -228,11 +236,14 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     set_start(model, plant_context, start, t0, shift)
     still = switch_off_still_balls(model, plant_context, arm)
     simulator.Initialize()
-    rows, clock = [], time.perf_counter()
-    for n in np.round((times - t0) / dt).astype(int):
-        if n > 0:
-            simulator.AdvanceTo((n - STEP_MARGIN) * dt)
-        rows.append(read(model, plant_context))
+    rows, clock, stopped = [], time.perf_counter(), None
+    for k, n in enumerate(np.round((times - t0) / dt).astype(int)):
+        if n > 0 and stopped is None:
+            try:
+                simulator.AdvanceTo((n - STEP_MARGIN) * dt)
+            except RuntimeError as exc:     # SAP stops on a NaN it meets ("the Hessian … is NaN")
+                stopped = (k, str(exc).split(".")[0])
+        rows.append(read(model, plant_context) if stopped is None else rows[-1] if rows else nan_sample(model))
     wall = time.perf_counter() - clock
     frame = columns(system, model, times, rows, shift)
     facts = {"wall_time_s": wall, "build_time_s": build_time, "step": dt, "preroll_steps_used": preroll,
@@ -240,12 +251,28 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
              "drive_gains": " ".join(f"{kp:.6g} {kd:.6g}" for kp, kd in model.gains) or "none",
              "cut_joints": " ".join(j.name for j in topo.cuts) or "none",
              "ball_constraints_switched_off": len(still)}
-    blown = ~np.isfinite(frame.to_numpy(dtype=float)).all(axis=1)
+    with np.errstate(all="ignore"):
+        blown = ~np.isfinite(frame.to_numpy(dtype=float)).all(axis=1) | ~(joint_gaps(system, rows) <= 10 * arm)
+    if stopped is not None:
+        blown[stopped[0]:] = True
+        facts["stopped"] = stopped[1]
     if blown.any():
+        # Drake's SAP runs on through a blow-up (the planar `Run.blown_up`):
+        # from the first sample where a joint has come apart (a gap of ten
+        # times the scene's size) or a value is not finite, the run is NaN.
         first = int(np.argmax(blown))
         frame.iloc[first:, 1:] = np.nan
         facts["blown_up_at"] = float(times[first])
     return RawRun(frame, {}, RunInfo.of(facts))
+
+
+def joint_gaps(system: SpatialSystem, rows: list[Sample]) -> np.ndarray:
+    """Per sample the largest distance between the two points of a joint
+    that holds them together (all kinds but the sliding ones), m."""
+    motion = Motion(system, rows)
+    gaps = [np.linalg.norm(motion.point(j.body_j, j.point_j) - motion.point(j.body_i, j.point_i), axis=1)
+            for j in system.joints if j.kind not in ("prismatic", "cylindrical", "planar")]
+    return np.max(gaps, axis=0) if gaps else np.zeros(len(rows))
 
 
 def lever(system: SpatialSystem) -> float:

@@ -179,6 +179,9 @@ def cut_loads(system: SpatialSystem, topo: SpatialTopology, motion: Motion,
             coef[:, k:k + 3, 6 * c:6 * c + 3] = sign * eye
             coef[:, k + 3:k + 6, 6 * c:6 * c + 3] = sign * skew(Pj - G[body])
             coef[:, k + 3:k + 6, 6 * c + 3:6 * c + 6] = sign * eye
-    x = np.stack([np.linalg.lstsq(coef[i], rhs[i], rcond=None)[0] for i in range(n)])
+    x = np.full((n, 6 * len(topo.cuts)), np.nan)
+    finite = np.isfinite(coef).all(axis=(1, 2)) & np.isfinite(rhs).all(axis=1)      # a blown-up run is NaN
+    for i in np.flatnonzero(finite):
+        x[i] = np.linalg.lstsq(coef[i], rhs[i], rcond=None)[0]
     return {cut.name: (x[:, 6 * c:6 * c + 3], x[:, 6 * c + 3:6 * c + 6]) for c, cut in enumerate(topo.cuts)}
 

@@ -300,6 +300,18 @@ def test_adapter_runs_a_spatial_mechanism():
     assert adapter.check_settings(mech, {**settings, "integrator": "rk3"})[0][0] == "integrator"
 
 
+def test_defaults_recompute_a_rate_the_harness_could_not_find():
+    """The harness's peak rates of a spatial scene read 0 where they come
+    from the planar `peak_rate` (no planar bodies): the adapter then finds
+    Ω itself, the heavy top's 200 rad/s (a 5e-5 s step, not 1 ms)."""
+    from mechval.adapter import PeakRates
+    top = with_velocities(HeavyTop())
+    mech, t = spatial_mechanism(top), np.linspace(0.0, 0.02, 3)
+    settings = DrakeAdapter().default_settings(mech, t, rates=PeakRates(t, None, 0.0))
+    assert settings["timestep"] == pytest.approx(0.01 / spatial_rate(top, t), rel=0.01)
+    assert settings["integrator"] == "rk3"
+
+
 def test_loop_only_cut_at_the_ground_is_refused():
     """A loop whose every joint is driven, on the ground or a slide
     cannot be closed (a ball constraint on the world body crashes Drake

@@ -115,7 +115,11 @@ class DrakeAdapter(EngineAdapter):
         at Drake's default 1. Figures: docs/engines.md."""
         if mechanism.spatial is not None:
             from mechval.engines.drake.spatial import spatial_defaults
-            return spatial_defaults(mechanism.spatial, times, None if rates is None else rates.rate)
+            # Ω from the prepared scene's rates when they have it; 0 is what
+            # the planar `peak_rate` gives a spatial scene (no planar bodies),
+            # so it is recomputed here from the spatial reference.
+            known = rates is not None and rates.rate > 0
+            return spatial_defaults(mechanism.spatial, times, rates.rate if known else None)
         rate = (peak_rates(mechanism, times) if rates is None else rates).rate
         return {
             "timestep": default_step(mechanism, times, rate=rate),

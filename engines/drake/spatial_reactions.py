@@ -23,7 +23,7 @@ import numpy as np
 
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.rotation import cross, skew
-from mechval.reference.spatial.system import SpatialJoint, SpatialSystem
+from mechval.reference.spatial.system import SpatialSystem
 
 from mechval.engines.drake.spatial_model import scene_loads
 from mechval.engines.drake.spatial_tree import SpatialTopology

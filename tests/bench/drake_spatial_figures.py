@@ -1,9 +1,10 @@
 """Drake on the spatial scenes of tests/test_spatial_drake.py: per scene
 the integrator and step of the defaults, the worst error over its bound
 (mechval's default tolerances, the columns the reference reports) and
-the CPU time of the run and its reference; the SAP scenes with SAP forced
-on them too. The figures of docs/engines.md, "Drake: spatial scenes".
-Prints; asserts nothing (about 1 min of CPU).
+the CPU time of the run and its reference; the RK3 scenes with SAP forced
+on them too; then A04's own measure, Bricard's mechanical energy over
+10 s, at refine 1, 4, 16. The figures of docs/engines.md, "Drake: spatial
+scenes". Prints; asserts nothing (about 1.5 min of CPU).
 
     .venv/bin/python tests/bench/drake_spatial_figures.py
 """
@@ -56,6 +57,21 @@ def scenes():
         yield f"{kind} SAP", sliding(kind), np.linspace(0.0, 0.5, 26), SAP
 
 
+def bricard_energy() -> None:
+    """A04's measure: the largest change of the mechanical energy over 10 s."""
+    from mechval.engines.drake.spatial import run_spatial, spatial_defaults, spatial_rate
+    from mechval.reference.spatial.columns import body_state
+    from mechval.reference.spatial.dynamics import energy
+    system, t = Bricard().system, np.linspace(0.0, 10.0, 1001)
+    defaults = spatial_defaults(system, t, spatial_rate(system, t, dense=2001))
+    for refine in (1, 4, 16):
+        clock = time.process_time()
+        pose, w, _ = body_state(system, run_spatial(system, t, {**defaults, "refine": refine}).frame)
+        E = energy(system, pose, w)
+        print(f"Bricard 10 s refine {refine:<2}: energy change at most {np.abs(E - E[0]).max():.3g} J "
+              f"(E0 {E[0]:.4g} J), {time.process_time() - clock:.1f} s CPU", flush=True)
+
+
 def main() -> None:
     for name, system, t, overrides in scenes():
         clock = time.process_time()
@@ -65,6 +81,7 @@ def main() -> None:
         worst = max(ratios, key=ratios.get)
         print(f"{name:<24} {chosen['integrator']} dt {chosen['timestep']:.3g} refine {chosen['refine']}: "
               f"worst {ratios[worst]:.3g} × bound ({worst}), {cpu:.1f} s CPU", flush=True)
+    bricard_energy()
 
 
 if __name__ == "__main__":

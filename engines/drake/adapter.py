@@ -40,6 +40,11 @@ sample instant t_n (the state x_n after n steps from the run's start):
   drive's lag (T/Kp) has settled by the first sample.
 Only in-plane forces and the z couple are reported: the out-of-plane
 reactions of a planar loop closed in 3D are statically indeterminate.
+
+A spatial scene (`Mechanism.spatial`) is built and read by `spatial`
+(`run_spatial`; its conversions in `spatial_reactions`), with the same
+settings and step rule, and by default a continuous plant where the scene
+has no loop or prescribed drive (docs/engines.md, "Drake: spatial scenes").
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """One Drake run of a spatial scene (`run_spatial`): the start state from
 the reference, the simulation, and the read-out at the samples in
-mechval's raw columns (conversions: `spatial_reactions` and the adapter's
-docstring; the model: `spatial_model`)."""
+mechval's raw columns (motion here, reactions in `spatial_reactions`;
+the model: `spatial_model`; docs/engines.md, "Drake: spatial scenes")."""
 
 from __future__ import annotations
 

@@ -167,10 +167,11 @@ def test_sliding_joints_under_gravity(kind):
         assert_within(found)
 
 
-def test_fixed_and_universal_joints():
-    """A plate welded to a driven crank (a WeldJoint in the tree), and
-    Hooke's joint between two driven shafts (the loop cut at the universal
-    joint: a ball and a distance constraint)."""
+def test_fixed_universal_and_prismatic_joints():
+    """A plate welded to a driven crank (a WeldJoint in the tree), Hooke's
+    joint between two shafts (the loop cut at the universal joint: a ball
+    and a distance constraint) and an arm welded to a driven slide (the
+    drive's effort a force)."""
     law = DriveLaw(0.2, 3.0, 1.5)
     axis = unit((0.3, 0.1, 1.0))
     welded = SpatialSystem("crank and plate", (SpatialBody("crank", 2.0, (0.1, 0.0, 0.05), inertia(50)),
@@ -181,6 +182,13 @@ def test_fixed_and_universal_joints():
     assert_within(errors(welded, np.linspace(0.0, 1.0, 21))[0])
     hooke = hooke_joint()
     assert_within(errors(hooke, np.linspace(0.0, 1.0, 21))[0])
+    slide = unit((1.0, 0.3, -0.4))
+    pushed = SpatialSystem("driven slide", (SpatialBody("slider", 1.5, (0.05, 0.02, 0.0), inertia(90)),
+                                            SpatialBody("arm", 0.5, (0.0, 0.1, 0.2), inertia(91))),
+                           (revolute("S", GROUND, "slider", (0.0, 0.0, 0.0), slide, kind="prismatic"),
+                            SpatialJoint("W", "fixed", "slider", "arm", (0.0, 0.1, 0.0), (0.0, 0.1, 0.0))),
+                           (SpatialDrive("S", DriveLaw(0.1, 0.5, -0.8), "push"),), GRAVITY)
+    assert_within(errors(pushed, np.linspace(0.0, 1.0, 21))[0])
 
 
 def hooke_joint() -> SpatialSystem:

@@ -109,7 +109,7 @@ def set_start(model: SpatialModel, context, start: Mapping[str, np.ndarray], t0:
     that ends at t_n (the planar `run` does the same)."""
     plant = model.plant
     for tj in model.topo.tree:
-        (pb, pp, pf), (cb, cp, cf) = joint_frames(tj)
+        (pb, pp, pf), (cb, cp, cf) = joint_frames(tj, start)
         (op, Rp), (oc, Rc) = world_pose(start, pb), world_pose(start, cb)
         RF, RM = Rp @ pf, Rc @ cf
         R = RF.T @ RM

@@ -86,13 +86,19 @@ def side(j: SpatialJoint, body_i_side: bool) -> tuple[str, np.ndarray, np.ndarra
     return j.body_j, np.asarray(j.point_j, float), np.asarray(j.frame_j, float)
 
 
-def joint_frames(tj: TreeJoint) -> tuple[tuple, tuple]:
+def joint_frames(tj: TreeJoint, start: Mapping[str, np.ndarray]) -> tuple[tuple, tuple]:
     """(body, point, frame) of the parent's and the child's side, the
-    frames turned as Drake's joint of that kind reads them."""
+    frames turned as Drake's joint of that kind reads them. A spherical
+    joint has no axis: its child frame is the parent's at the start
+    (`start`: the reference's raw columns), so that BallRpyJoint starts
+    at zero angles, as far as it can be from its singular pitch of ±90°."""
     parent, child = side(tj.joint, tj.sign > 0), side(tj.joint, tj.sign < 0)
     if tj.joint.kind == "universal":
         parent = (parent[0], parent[1], parent[2] @ PIN_AS_X)
         child = (child[0], child[1], child[2] @ PIN_AS_Y)
+    elif tj.joint.kind == "spherical":
+        (_, Rp), (_, Rc) = world_pose(start, parent[0]), world_pose(start, child[0])
+        child = (child[0], child[1], Rc.T @ Rp @ parent[2])
     return parent, child
 
 
@@ -128,7 +134,7 @@ def build(system: SpatialSystem, topo: SpatialTopology, settings: Mapping[str, A
         j, name = tj.joint, f"j{index[tj.joint.name]}"
         if j.damping and j.kind not in ("revolute", "prismatic"):
             raise Unrepresentable(f"joint.{j.name}.damping", f"damping on a {j.kind} joint has no axis to act on")
-        (pb, pp, pf), (cb, cp, cf) = joint_frames(tj)
+        (pb, pp, pf), (cb, cp, cf) = joint_frames(tj, start)
         F, M = frame(pb, pp, pf, f"{name}p"), frame(cb, cp, cf, f"{name}c")
         if j.kind == "revolute":
             joints[j.name] = (plant.AddJoint(RevoluteJoint(name, F, M, Z, j.damping)),)
@@ -219,7 +225,7 @@ def coordinate_inertia(system: SpatialSystem, topo: SpatialTopology, tj: TreeJoi
     for other in topo.tree:                     # parents come before children
         if other.parent in below:
             below.add(other.child)
-    (pb, pp, pf), _ = joint_frames(tj)
+    (pb, pp, pf), _ = joint_frames(tj, start)
     origin, R = world_pose(start, pb)
     point, axis = origin + R @ pp, R @ pf[:, 2]
     total = 0.0

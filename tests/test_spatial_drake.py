@@ -153,6 +153,18 @@ def test_heavy_top_precesses():
     assert_within(found)
 
 
+def test_spherical_pendulum_swung_over_the_top():
+    """A ball-jointed pendulum thrown over the top (12 rad/s about y): the
+    BallRpyJoint in the tree, started at zero angles, with the continuous
+    plant."""
+    bob = SpatialBody("bob", 1.0, (0.0, 0.0, -0.3), inertia(95))
+    system = SpatialSystem("swing", (bob,), (SpatialJoint("S", "spherical", GROUND, "bob", (0, 0, 0), (0, 0, 0)),),
+                           gravity=GRAVITY, velocities={"bob": ((0.0, 0.0, 0.0), (0.3, 12.0, 0.0))})
+    found, chosen = errors(system, np.linspace(0.0, 0.5, 26))
+    assert chosen["integrator"] == "rk3"
+    assert_within(found)
+
+
 @pytest.mark.parametrize("kind", ["cylindrical", "planar"])
 def test_sliding_joints_under_gravity(kind):
     """A body on a cylindrical (Drake: a slide and a hinge through a

@@ -157,7 +157,8 @@ class DrakeAdapter(EngineAdapter):
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]):
         if mechanism.spatial is not None:
-            raise NotImplementedError("drake: no model audit of spatial scenes yet")
+            from mechval.engines.drake.spatial_audit import audit_spatial
+            return audit_spatial(mechanism.spatial, times, settings)
         from mechval.engines.drake.audit import audit_model
         return audit_model(mechanism, times, settings)
 

@@ -201,6 +201,16 @@ def read(model: SpatialModel, context) -> Sample:
                   joints, plant.get_net_actuation_output_port().Eval(context).copy())
 
 
+def built(system: SpatialSystem, times: np.ndarray, settings: Mapping[str, Any]) -> tuple:
+    """(model, t0, pre-roll steps, the reference's raw columns at t0, lever):
+    the plant a run (and the audit) starts from."""
+    dt = float(settings["timestep"]) / int(settings["refine"])
+    topo = spatial_topology(system)
+    t0, preroll, start = start_of(system, np.asarray(times, dtype=float), int(settings["preroll_steps"]), dt)
+    arm = lever(system)
+    return build(system, topo, settings, t0, float(times[-1]), start, arm), t0, preroll, start, arm
+
+
 def nan_sample(model: SpatialModel) -> Sample:
     """A sample of NaN: where SAP stopped before the first sample."""
     nan3, bodies = np.full(3, np.nan), model.system.bodies
@@ -214,10 +224,8 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     times = np.asarray(times, dtype=float)
     clock = time.perf_counter()
     dt = float(settings["timestep"]) / int(settings["refine"])
-    topo = spatial_topology(system)
-    t0, preroll, start = start_of(system, times, int(settings["preroll_steps"]), dt)
-    arm = lever(system)
-    model = build(system, topo, settings, t0, float(times[-1]), start, arm)
+    model, t0, preroll, start, arm = built(system, times, settings)
+    topo = model.topo
     build_time = time.perf_counter() - clock
     simulator = Simulator(model.diagram)
     continuous = settings.get("integrator", "sap") != "sap"

@@ -84,20 +84,24 @@ def spatial_defaults(system: SpatialSystem, times: np.ndarray, rate: float | Non
 
 def start_of(system: SpatialSystem, times: np.ndarray, steps: int, dt: float) -> tuple[float, int, dict]:
     """(t0, pre-roll steps, the reference's raw columns at t0): a prescribed
-    scene starts `steps` steps before the first sample (the drives' PD lag
-    settles), none if the reference cannot solve there; a torque-driven or
-    free one at the first sample."""
+    scene starts `steps` steps before the first sample (SAP's start and the
+    drives' PD lag settle), none if the reference cannot solve there or
+    reaches the first sample on another branch than the run's own start; a
+    torque-driven or free one at the first sample."""
     first = float(times[0])
-    if system.forward_dynamics:
-        steps = 0
-    for n in (steps, 0) if steps else (0,):
-        t0 = first - n * dt
+    direct = spatial_solution(system, np.asarray(times[:2], float)).frame
+    if steps and not system.forward_dynamics:
         try:
-            frame = spatial_solution(system, np.array([t0, first]) if n else np.asarray(times[:2], float)).frame
-        except ValueError:
-            continue
-        return t0, n, {c: frame[c].to_numpy()[:1] for c in frame.columns}
-    raise Unrepresentable("time", "the spatial reference cannot start the run")
+            frame = spatial_solution(system, np.array([first - steps * dt, first])).frame
+        except ValueError:              # the reference cannot assemble there: no pre-roll
+            frame = None
+        # Assembled earlier, the reference must reach the run's own start
+        # (not another branch of the loop) at the first sample.
+        columns = system.motion_columns()
+        if frame is not None and np.abs(frame[columns].to_numpy()[1, :] - direct[columns].to_numpy()[0, :]).max() \
+                <= 1e-9 * max(1.0, float(np.abs(direct[columns].to_numpy()[0, :]).max())):
+            return first - steps * dt, steps, {c: frame[c].to_numpy()[:1] for c in frame.columns}
+    return first, 0, {c: direct[c].to_numpy()[:1] for c in direct.columns}
 
 
 def set_start(model: SpatialModel, context, start: Mapping[str, np.ndarray], t0: float, dt: float) -> None:

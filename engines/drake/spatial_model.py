@@ -1,5 +1,6 @@
-"""A `SpatialSystem` as a discrete Drake 1.51 MultibodyPlant with the SAP
-solver (docs/engines.md, Drake, "Spatial scenes").
+"""A `SpatialSystem` as a Drake 1.51 MultibodyPlant: discrete with the SAP
+solver, or continuous (settings' `integrator` "rk3": no constraints, no
+PD drives) (docs/engines.md, "Drake: spatial scenes").
 
 - Every body a `RigidBody` whose frame is the scene's body frame: mass,
   centre of mass and the full inertia tensor about it (body axes). Names
@@ -8,7 +9,8 @@ solver (docs/engines.md, Drake, "Spatial scenes").
   the child, each at the joint's point with the joint's frame, so z is
   the joint axis: revolute → `RevoluteJoint` about z (its angle is the
   scene's, from xi to xj, for a child body_j), prismatic →
-  `PrismaticJoint` along z, spherical → `BallRpyJoint`, universal →
+  `PrismaticJoint` along z, spherical → `BallRpyJoint` (its child frame
+  the parent's at the start: zero angles there), universal →
   `UniversalJoint` (Drake's pins are Fx and My: F's x is the parent's
   pin, M's y the child's), planar → `PlanarJoint`, fixed → `WeldJoint`,
   cylindrical → a `PrismaticJoint` along z to a massless body and a

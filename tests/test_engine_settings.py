@@ -47,7 +47,8 @@ EXTRA = {
     "exudyn": {"timestep": [0.0, 3e-3], "pre_roll_steps": [0, -10, 2.5, 10**9], "spectral_radius": [-1, 1.0, 1.5],
                "newton_relative_tolerance": [0.0, 2.0], "newton_absolute_tolerance": [0.0]},
     "drake": {"timestep": [0.0, 3e-3], "refine": [0, 2.5], "drive_stiffness": [0.0, -1.0, 1e9],
-              "drive_damping": [-1.0], "preroll_steps": [-10, 2.5, 10**9], "near_rigid_threshold": [0.0, 1.5]},
+              "drive_damping": [-1.0], "preroll_steps": [-10, 2.5, 10**9], "near_rigid_threshold": [0.0, 1.5],
+              "integrator": ["euler", 1], "accuracy": [0.0, 2.0]},
 }
 
 

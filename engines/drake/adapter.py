@@ -40,6 +40,11 @@ sample instant t_n (the state x_n after n steps from the run's start):
   drive's lag (T/Kp) has settled by the first sample.
 Only in-plane forces and the z couple are reported: the out-of-plane
 reactions of a planar loop closed in 3D are statically indeterminate.
+
+A spatial scene (`Mechanism.spatial`) is built and read by `spatial`
+(`run_spatial`; its conversions in `spatial_reactions`), with the same
+settings and step rule, and by default a continuous plant where the scene
+has no loop or prescribed drive (docs/engines.md, "Drake: spatial scenes").
 """
 
 from __future__ import annotations
@@ -51,7 +56,7 @@ import numpy as np
 
 from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
 from mechval.model.mechanism import Mechanism
-from mechval.settings import TIMESTEP, Number, Setting
+from mechval.settings import TIMESTEP, Choice, Number, Setting
 
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
 
@@ -74,6 +79,13 @@ class DrakeAdapter(EngineAdapter):
         # SAP's near-rigid threshold β (Drake's default 1): the ball
         # constraints' regularisation, as a fraction of the step.
         "near_rigid_threshold": Number(0.0, 1.0, low_open=True),
+        # Spatial scenes only (`spatial`): "sap", the discrete plant above,
+        # or "rk3", a continuous plant stepped by Drake's error-controlled
+        # third-order Runge–Kutta, at most `timestep` per step, to the
+        # target `accuracy`: for scenes without loops or prescribed drives
+        # (Drake takes neither in continuous time).
+        "integrator": Choice(("sap", "rk3")),
+        "accuracy": Number(0.0, 1.0, low_open=True),
     }
     #: High accuracy is a finer step, `refine = 4` (a quarter of it: every
     #: error of the first-order step falls fourfold; tests/test_drake.py
@@ -84,8 +96,11 @@ class DrakeAdapter(EngineAdapter):
     cost_variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "SAP": {}, "SAP soft drive": {"drive_stiffness": 100.0}}
     step_settings = ("timestep", "refine", "preroll_steps")
-    #: Not redundant constraints: not built or measured yet.
+    #: Not redundant constraints of planar scenes: not built or measured
+    #: yet (spatial scenes' redundant loops are built: `spatial_tree`).
     features: ClassVar[frozenset[str]] = frozenset(FEATURES) - {"redundant constraints"}
+    spatial_joints: ClassVar[frozenset[str]] = frozenset(
+        ("revolute", "prismatic", "cylindrical", "spherical", "universal", "planar", "fixed"))
     output_copies, bytes_per_step = 8, 64         # samples are read as the run goes; nothing per step
     uses_peak_rates = True
 
@@ -103,6 +118,13 @@ class DrakeAdapter(EngineAdapter):
         toward the desired rate against Kp); a pre-roll of 20 steps
         (none for a torque-driven or free run); SAP's near-rigid threshold
         at Drake's default 1. Figures: docs/engines.md."""
+        if mechanism.spatial is not None:
+            from mechval.engines.drake.spatial import spatial_defaults
+            # Ω from the prepared scene's rates when they have it; 0 is what
+            # the planar `peak_rate` gives a spatial scene (no planar bodies),
+            # so it is recomputed here from the spatial reference.
+            known = rates is not None and rates.rate > 0
+            return spatial_defaults(mechanism.spatial, times, rates.rate if known else None)
         rate = (peak_rates(mechanism, times) if rates is None else rates).rate
         return {
             "timestep": default_step(mechanism, times, rate=rate),
@@ -111,6 +133,9 @@ class DrakeAdapter(EngineAdapter):
             "drive_damping": 0.0,
             "preroll_steps": 0 if mechanism.forward_dynamics else 20,
             "near_rigid_threshold": 1.0,
+            # The planar plant is always SAP; `accuracy` is read by "rk3" only.
+            "integrator": "sap",
+            "accuracy": 1e-6,
         }
 
     def check_settings(self, mechanism: Mechanism, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
@@ -119,13 +144,28 @@ class DrakeAdapter(EngineAdapter):
         if mechanism.forward_dynamics and settings["preroll_steps"]:
             return [("preroll_steps", "a torque-driven or free run starts at the first instant from its initial "
                                       "state, with no pre-roll: leave it out or set 0")]
+        if settings.get("integrator", "sap") != "sap":
+            if mechanism.spatial is None:
+                return [("integrator", "the continuous plant is built for spatial scenes only")]
+            from mechval.engines.drake.spatial import has_constraints
+            if has_constraints(mechanism.spatial):
+                return [("integrator", "Drake 1.51's continuous plant takes no constraints and no PD-controlled "
+                                       "drive: this scene has a loop or a prescribed drive, use \"sap\"")]
+            if "accuracy" not in settings:
+                return [("accuracy", "the continuous plant needs a target accuracy")]
         return []
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]):
+        if mechanism.spatial is not None:
+            from mechval.engines.drake.spatial_audit import audit_spatial
+            return audit_spatial(mechanism.spatial, times, settings)
         from mechval.engines.drake.audit import audit_model
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+        if mechanism.spatial is not None:
+            from mechval.engines.drake.spatial import run_spatial
+            return run_spatial(mechanism.spatial, times, settings)
         from mechval.engines.drake.run import Run
         clock = time.perf_counter()
         run = Run(mechanism, times, settings)

@@ -11,6 +11,8 @@ import signal
 import subprocess
 import sys
 
+import numpy as np
+
 from mechval.records.findings import Finding, Measurement
 
 ENGINE = "drake"
@@ -33,7 +35,29 @@ BALL_ON_WORLD = Finding(
     workaround="close loops at pins between two moving bodies (mechval does)",
 )
 
-FINDINGS = (BALL_ON_WORLD,)
+FIXED_POINT_BALL = Finding(
+    key="drake.ball-constraint-between-fixed-points",
+    engine=ENGINE,
+    title="A ball constraint whose two points the tree holds still blows the SAP step up",
+    wrong=("A ball constraint whose points cannot move (each lies on its body's fixed hinge axis: its Jacobian is "
+           "zero, the constraint wholly redundant, as at the cross of Hooke's joint between two shafts on the "
+           "ground) makes the discrete SAP plant's velocities grow without bound within a second, though the "
+           "constraint holds by itself; with the same constraint left out the motion is right. mechval "
+           "switches off, at the start, every ball constraint whose relative Jacobian is zero "
+           "(engines/drake/spatial.py); the loop stays closed by the other constraints and the tree."),
+    how=("Two bodies (1 kg, centre of mass 0.2 m out along their hinge's normal, inertia 1e-3·diag(1, 1.5, 2) "
+         "kg·m²) on revolute joints to the world about x and about (cos 35°, sin 35°, 0), both through the "
+         "origin, gravity −9.81 z; a ball constraint between the origin on one and on the other; time step 1e-3 "
+         "s, SAP, 0.5 s from rest turned 0.3 rad. The figure is the largest generalized speed (rad/s) with the "
+         "constraint over the largest without it: 1 when the constraint is harmless, inf when SAP stops on a "
+         "NaN (it does on this plant; in mechval's Hooke scene it ran on to drive torques of 3e10 N·m)."),
+    figure="peak speed with the constraint / peak speed without it",
+    present_above=10.0,
+    since="1.51.1 (earliest measured)",
+    workaround="switch off a ball constraint whose relative Jacobian is zero (mechval does, at the start)",
+)
+
+FINDINGS = (BALL_ON_WORLD, FIXED_POINT_BALL)
 
 PROBE_SCRIPT = """
 import numpy as np
@@ -70,4 +94,49 @@ def probe_ball_on_world() -> Measurement:
                        error="" if crashed or "stepped" in child.stdout else note)
 
 
-PROBES = {BALL_ON_WORLD.key: probe_ball_on_world}
+def _fixed_point_run(with_ball: bool) -> float:
+    """The largest generalized speed over 0.5 s of FIXED_POINT_BALL's plant
+    (inf when SAP stops on a NaN it met)."""
+    import numpy as np
+    from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
+    from pydrake.multibody.tree import RevoluteJoint, RotationalInertia, SpatialInertia
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    builder = DiagramBuilder()
+    plant = builder.AddSystem(MultibodyPlant(time_step=1e-3))
+    plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
+    instance = plant.AddModelInstance("probe")
+    angle = np.radians(35.0)
+    axes = (np.array([1.0, 0.0, 0.0]), np.array([np.cos(angle), np.sin(angle), 0.0]))
+    bodies, joints = [], []
+    for k, axis in enumerate(axes):
+        arm = 0.2 * np.cross(axis, [0.0, 0.0, 1.0]) if k else np.array([0.0, 0.2, 0.0])
+        inertia = SpatialInertia.MakeFromCentralInertia(1.0, arm, RotationalInertia(1e-3, 1.5e-3, 2e-3))
+        bodies.append(plant.AddRigidBody(f"b{k}", instance, inertia))
+        joints.append(plant.AddJoint(RevoluteJoint(f"j{k}", plant.world_frame(), bodies[k].body_frame(), axis, 0.0)))
+    if with_ball:
+        plant.AddBallConstraint(bodies[0], np.zeros(3), bodies[1], np.zeros(3))
+    plant.Finalize()
+    simulator = Simulator(builder.Build())
+    context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    joints[0].set_angle(context, 0.3)
+    simulator.Initialize()
+    peak = 0.0
+    for k in range(1, 51):
+        try:
+            simulator.AdvanceTo(0.01 * k)
+        except RuntimeError:            # SAP's own check: "the Hessian … is NaN"
+            return float("inf")
+        peak = max(peak, float(np.abs(plant.GetVelocities(context)).max()))
+    return peak
+
+
+def probe_fixed_point_ball() -> Measurement:
+    """Run the plant with and without the ball constraint."""
+    with_ball, without = _fixed_point_run(True), _fixed_point_run(False)
+    figure = with_ball / without
+    return Measurement(FIXED_POINT_BALL, importlib.metadata.version("drake"), figure=figure, read=with_ball,
+                       exact=without)
+
+
+PROBES = {BALL_ON_WORLD.key: probe_ball_on_world, FIXED_POINT_BALL.key: probe_fixed_point_ball}

@@ -33,6 +33,7 @@ pytest.importorskip("pydrake")
 from mechval.engines.base import Unrepresentable  # noqa: E402
 from mechval.engines.drake.adapter import DrakeAdapter  # noqa: E402
 from mechval.engines.drake.spatial import run_spatial, spatial_defaults, spatial_rate  # noqa: E402
+from mechval.testing import SpatialContract  # noqa: E402
 
 pytestmark = pytest.mark.engine
 
@@ -344,14 +345,13 @@ def test_adapter_runs_a_spatial_mechanism():
     assert adapter.check_settings(mech, {**settings, "integrator": "rk3"})[0][0] == "integrator"
 
 
-def test_defaults_recompute_a_rate_the_harness_could_not_find():
-    """The harness's peak rates of a spatial scene read 0 where they come
-    from the planar `peak_rate` (no planar bodies): the adapter then finds
-    Ω itself, the heavy top's 200 rad/s (a 5e-5 s step, not 1 ms)."""
-    from mechval.adapter import PeakRates
+def test_defaults_take_the_spatial_step_rule():
+    """Without the harness's peak rates the adapter finds Ω itself from the
+    shared spatial step rule: the heavy top's 200 rad/s (a 5e-5 s step,
+    not 1 ms), on the continuous plant (no loop, no drive)."""
     top = with_velocities(HeavyTop())
     mech, t = spatial_mechanism(top), np.linspace(0.0, 0.02, 3)
-    settings = DrakeAdapter().default_settings(mech, t, rates=PeakRates(t, None, 0.0))
+    settings = DrakeAdapter().default_settings(mech, t)
     assert settings["timestep"] == pytest.approx(0.01 / spatial_rate(top, t), rel=0.01)
     assert settings["integrator"] == "rk3"
 
@@ -423,3 +423,7 @@ def test_model_audit_sees_a_difference():
     model = built(system, t, spatial_defaults(system, t, 3.0))[0]
     wrong = failures(audit(expected_spatial(other), read_spatial(model)))
     assert list(zip(wrong["item"], wrong["quantity"])) == [("body coupler", "com y")]
+
+
+class TestSpatialContract(SpatialContract):
+    engine = "drake"

@@ -54,7 +54,7 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from mechval.adapter import FEATURES, PeakRates, as_float, steps_per_interval
+from mechval.adapter import FEATURES, SPATIAL, PeakRates, as_float, steps_per_interval
 from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Number, Setting
 
@@ -98,7 +98,7 @@ class DrakeAdapter(EngineAdapter):
     step_settings = ("timestep", "refine", "preroll_steps")
     #: Not redundant constraints of planar scenes: not built or measured
     #: yet (spatial scenes' redundant loops are built: `spatial_tree`).
-    features: ClassVar[frozenset[str]] = frozenset(FEATURES) - {"redundant constraints"}
+    features: ClassVar[frozenset[str]] = (frozenset(FEATURES) - {"redundant constraints"}) | {SPATIAL}
     spatial_joints: ClassVar[frozenset[str]] = frozenset(
         ("revolute", "prismatic", "cylindrical", "spherical", "universal", "planar", "fixed"))
     output_copies, bytes_per_step = 8, 64         # samples are read as the run goes; nothing per step
@@ -120,11 +120,8 @@ class DrakeAdapter(EngineAdapter):
         at Drake's default 1. Figures: docs/engines.md."""
         if mechanism.spatial is not None:
             from mechval.engines.drake.spatial import spatial_defaults
-            # Ω from the prepared scene's rates when they have it; 0 is what
-            # the planar `peak_rate` gives a spatial scene (no planar bodies),
-            # so it is recomputed here from the spatial reference.
-            known = rates is not None and rates.rate > 0
-            return spatial_defaults(mechanism.spatial, times, rates.rate if known else None)
+            return spatial_defaults(mechanism.spatial, times, (peak_rates(mechanism, times) if rates is None
+                                                                else rates).rate)
         rate = (peak_rates(mechanism, times) if rates is None else rates).rate
         return {
             "timestep": default_step(mechanism, times, rate=rate),

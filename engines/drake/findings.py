@@ -97,7 +97,6 @@ def probe_ball_on_world() -> Measurement:
 def _fixed_point_run(with_ball: bool) -> float:
     """The largest generalized speed over 0.5 s of FIXED_POINT_BALL's plant
     (inf when SAP stops on a NaN it met)."""
-    import numpy as np
     from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
     from pydrake.multibody.tree import RevoluteJoint, RotationalInertia, SpatialInertia
     from pydrake.systems.analysis import Simulator

@@ -15,9 +15,9 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 
-from mechval.model.kinematics import STEP_RULE_GRID, dense_grid
+from mechval.model.kinematics import STEP_RULE_GRID, dense_grid, spatial_peak_rate
 from mechval.model.mechanism import GROUND
-from mechval.reference.spatial.mechanism import spatial_solution
+from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
 from mechval.reference.spatial.rotation import matrix_to_quaternion
 from mechval.reference.spatial.system import SpatialSystem
 
@@ -29,19 +29,11 @@ from mechval.engines.drake.spatial_tree import spatial_topology
 
 
 def spatial_rate(system: SpatialSystem, times: np.ndarray, dense: int = STEP_RULE_GRID) -> float:
-    """Ω of the step rule for a spatial scene: the largest over the run and
-    the bodies of |ω|, √|α| and ∛|jerk| (rad/s), from the reference on the
-    step rule's dense grid (`mechval.model.kinematics.step_rate`)."""
+    """Ω of the shared step rule (`mechval.model.kinematics.spatial_peak_rate`)
+    from the reference on `dense` instants of the run."""
     t = dense_grid(times, dense)
-    frame = spatial_solution(system, t).frame
-    rate = 0.0
-    for b in system.bodies:
-        w = frame[[f"{b.name}.w{c}" for c in "xyz"]].to_numpy()
-        al = frame[[f"{b.name}.alpha{c}" for c in "xyz"]].to_numpy()
-        jerk = np.gradient(al, t, axis=0)
-        norm = lambda x: np.linalg.norm(x, axis=1).max()
-        rate = max(rate, norm(w), np.sqrt(norm(al)), np.cbrt(norm(jerk)))
-    return float(rate)
+    mechanism = spatial_mechanism(system)
+    return spatial_peak_rate(mechanism, mechanism.motion(t), t)
 
 
 #: The continuous plant's target accuracy (Drake's integrator's

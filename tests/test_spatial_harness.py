@@ -202,3 +202,17 @@ def test_moments_zero_in_theory_are_judged_against_forces_times_size():
     assert row["verdict"] == "pass" and row["bound"] >= 1e-2 * 2.0 * 9.81 * reference.info.facts["length_scale"]
     planar_rule = dataclasses.replace(reference, info=dataclasses.replace(reference.info, facts={}))
     assert judged(planar_rule).set_index("signal").loc["bearing.Mx", "verdict"] == "fail"
+
+
+@pytest.mark.engine
+def test_a_spatial_scene_has_a_baseline_an_engine_run_checks_against(tmp_path, capsys):
+    """`mechval baseline save` and `check` on a spatial built-in: the
+    stored run checks out unchanged."""
+    from mechval.harness.cli import main
+    from mechval.testing import engine_or_skip
+
+    engine_or_skip("mujoco")
+    args = ["spatial/spherical-fourbar", "--engine", "mujoco", "--dir", str(tmp_path)]
+    assert main(["baseline", "save", *args]) == 0
+    assert main(["baseline", "check", *args]) == 0
+    assert "baseline check: ok" in capsys.readouterr().out

@@ -14,7 +14,8 @@ from typing import Any, Iterable, Mapping
 from mechval.engines.registry import REFERENCE, adapter, availability, engine_names
 from mechval.records.outputs import not_a_regular_file
 from mechval.model.scenario import Scenario
-from mechval.scenarios import builtin_names, load
+from mechval.scenarios import builtin_names, default_run_names, load
+from mechval.scenarios.loader import spatial_builtin_names
 
 from .defaults import Limits
 from .run_limits import check_run
@@ -63,14 +64,15 @@ def chosen_engines(names: list[str] | None) -> list[str]:
 def chosen_scenarios(names: list[str] | None, skip_hard: bool, long: bool = True) -> list[Scenario]:
     if names:
         return [load_scenario(n) for n in names]
-    loaded = [load_scenario(n) for n in builtin_names()]
+    loaded = [load_scenario(n) for n in default_run_names()]
     return [s for s in loaded if not (skip_hard and "hard" in s.tags) and (long or LONG not in s.tags)]
 
 
 def left_out(names: list[str] | None, scenarios: list[Scenario]) -> list[str]:
     """The built-ins a run of all built-ins left out."""
     ran = {s.name for s in scenarios}
-    return [] if names else [n for n in builtin_names() if n not in ran]
+    every = builtin_names() + spatial_builtin_names()
+    return [] if names else [n for n in every if n.rpartition("/")[2] not in ran]
 
 
 def default_out_dir(kind: str = "run") -> Path:

@@ -182,6 +182,7 @@ def print_summary(run: RunReport) -> int:
         print(f"warning: {warning}")
     if run.left_out:
         print(f"left out: {', '.join(run.left_out)} (built-ins tagged 'long', run with --long, or 'hard', left out "
-              f"by --skip-hard; naming a scene runs it)")
+              f"by --skip-hard, or spatial ones tagged 'extra', which an engine cannot meet (docs/engines.md); "
+              f"naming a scene runs it)")
     print(f"report: {run.folder / 'index.html'}")
     return 0 if run.passed else 1

@@ -27,6 +27,23 @@ def builtin_names() -> list[str]:
     return sorted(p.stem for p in HERE.glob("*.toml"))
 
 
+#: A spatial built-in with this tag is left out of a run of all built-ins:
+#: an engine cannot meet it at its default settings (docs/engines.md).
+EXTRA = "extra"
+
+
+def spatial_builtin_names() -> list[str]:
+    """The spatial built-ins (scenarios/spatial/NAME.toml, named "spatial/NAME")."""
+    return [f"spatial/{p.stem}" for p in sorted((HERE / "spatial").glob("*.toml"))]
+
+
+def default_run_names() -> list[str]:
+    """The built-ins a run of all built-ins takes: the planar ones
+    (`builtin_names`) and the spatial ones not tagged EXTRA."""
+    return builtin_names() + [n for n in spatial_builtin_names()
+                              if EXTRA not in read_toml(builtin_path(n)).get("tags", [])]
+
+
 def builtin_path(name: str) -> Path:
     return HERE / f"{name}.toml"
 

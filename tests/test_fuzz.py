@@ -253,6 +253,9 @@ MECHVAL = str(Path(sys.executable).parent / "mechval")
 #: each: the free and the torque-driven scene (their settings integrate
 #: the motion), and a prescribed one.
 ENGINE_SWEEP = {"fourbar-falling": 2, "slider-crank-motor": 2, "slider-crank": 1}
+#: Spatial files each engine's command line meets in the default sweep: a
+#: free body (its initial state) and a driven closed loop.
+SPATIAL_ENGINE_SWEEP = {"spatial/t-handle": 1, "spatial/rssr": 1}
 
 
 def check_command_line(tmp_path: Path, label: str, case: Case, engine: str) -> int:
@@ -301,7 +304,7 @@ def test_mutated_scenes_through_each_engine_command_line(tmp_path, engine):
     """A short sweep (five files, a few seconds each: one start-up of
     mechval and the engine); `-m slow` runs the longer one below."""
     engine_or_skip(engine)
-    sweep_command_line(tmp_path, engine, engine_cases(engine, ENGINE_SWEEP))
+    sweep_command_line(tmp_path, engine, engine_cases(engine, {**ENGINE_SWEEP, **SPATIAL_ENGINE_SWEEP}))
 
 
 @pytest.mark.slow
@@ -309,7 +312,7 @@ def test_mutated_scenes_through_each_engine_command_line(tmp_path, engine):
 @pytest.mark.parametrize("engine", ENGINES)
 def test_many_mutated_scenes_through_each_engine_command_line(tmp_path, engine):
     engine_or_skip(engine)
-    counts = {name: 3 for name in BUILTIN if name != "fourbar-long-run"}
+    counts = {name: 3 for name in BUILTIN + SPATIAL if name != "fourbar-long-run"}
     statuses = sweep_command_line(tmp_path, engine, engine_cases(engine, counts, seed=1))
     assert 0 in statuses and 2 in statuses
 

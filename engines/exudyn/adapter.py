@@ -56,7 +56,7 @@ from mechval.model.kinematics import dense_grid
 from mechval.model.mechanism import Mechanism
 from mechval.settings import TIMESTEP, Choice, Flag, Number, Setting
 
-from mechval.engines.base import EngineAdapter, RawRun, RunInfo, Unrepresentable, default_step, peak_rates
+from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
 from mechval.reference.spatial.system import JOINT_KINDS
 from mechval.engines.exudyn.audit import audit_model
 from mechval.engines.exudyn.model import solve
@@ -199,7 +199,7 @@ class ExudynAdapter(EngineAdapter):
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         if mechanism.spatial is not None:
-            raise Unrepresentable("spatial", "the Exudyn model audit reads planar models only (no spatial audit yet)")
+            raise NotImplementedError("exudyn: no model audit of spatial scenes yet (it reads planar models only)")
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:

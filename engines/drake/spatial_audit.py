@@ -2,15 +2,10 @@
 back through Drake's getters and set against the `SpatialSystem` with the
 core audit's verdicts (`mechval.records.audit.audit`).
 
-The expectations come from the scene alone (`expected_spatial`): per body
-its mass, centre of mass and inertia tensor about it (body axes); per
-joint its kind, bodies, point on each body and axis on each body (zi, zj;
-a fixed joint's x axes too; a spherical joint has no axis) and damping;
-each spring-damper's bodies, points, stiffness, free length and damping;
-gravity; contacts off and no joint limits. Body loads and joint torque
-laws are not audited yet (the applied-force system holds the scene's own
-objects). Until the core audit has spatial expectations of its own, they
-are stated here.
+The expectations come from the scene alone
+(`mechval.records.spatial_audit.expected_spatial`). Body loads and joint
+torque laws are not audited yet (the applied-force system holds the
+scene's own objects).
 
 Readings: `default_mass`, `default_com` and `default_rotational_inertia`
 (about the body origin; shifted to the centre of mass); a tree joint's
@@ -32,57 +27,11 @@ import pandas as pd
 
 from pydrake.multibody.tree import ForceElementIndex, LinearSpringDamper
 
-from mechval.records.audit import SCENE, Expectation, Reading, audit, body_item, joint_item
+from mechval.records.audit import SCENE, Reading, audit, body_item, joint_item
+from mechval.records.spatial_audit import INERTIA, axis_columns, expected_spatial, joint_sides
 from mechval.reference.spatial.system import SpatialSystem
 
 from mechval.engines.drake.spatial import built
-
-INERTIA = (("Ixx", 0, 0), ("Iyy", 1, 1), ("Izz", 2, 2), ("Ixy", 0, 1), ("Ixz", 0, 2), ("Iyz", 1, 2))
-
-
-def _sides(j) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
-    return [("i", j.body_i, np.asarray(j.point_i, float), np.asarray(j.frame_i, float)),
-            ("j", j.body_j, np.asarray(j.point_j, float), np.asarray(j.frame_j, float))]
-
-
-def _axes(kind: str) -> tuple[int, ...]:
-    """The joint frame's columns a kind defines: none for a ball, z for the
-    rest, x and z for a fixed joint."""
-    return () if kind == "spherical" else (0, 2) if kind == "fixed" else (2,)
-
-
-def expected_spatial(system: SpatialSystem) -> list[Expectation]:
-    size = max([1e-3] + [float(np.linalg.norm(p)) for j in system.joints for p in (j.point_i, j.point_j)]
-               + [float(np.linalg.norm(b.com)) for b in system.bodies])
-    out = []
-    for b in system.bodies:
-        item, I = body_item(b.name), np.asarray(b.inertia, float)
-        out.append(Expectation(item, "mass", float(b.mass), "kg"))
-        out += [Expectation(item, f"com {c}", float(b.com[k]), "m", size) for k, c in enumerate("xyz")]
-        scale = float(np.abs(I).max())
-        out += [Expectation(item, name, float(I[r, c]), "kg·m²", scale) for name, r, c in INERTIA]
-    for j in system.joints:
-        item = joint_item(j.name)
-        out += [Expectation(item, "kind", j.kind), Expectation(item, "bodies", f"{j.body_i} → {j.body_j}"),
-                Expectation(item, "damping", float(j.damping))]
-        for side, body, point, frame in _sides(j):
-            out += [Expectation(item, f"point {side} {c}", float(point[k]), "m", size) for k, c in enumerate("xyz")]
-            for col in _axes(j.kind):
-                out += [Expectation(item, f"axis {side} {'xyz'[col]}{c}", float(frame[k, col]), "", 1.0)
-                        for k, c in enumerate("xyz")]
-    for spring in system.springs:
-        item = f"spring {spring.name}"
-        out += [Expectation(item, "bodies", f"{spring.body_a} → {spring.body_b}"),
-                Expectation(item, "stiffness", float(spring.stiffness), "N/m"),
-                Expectation(item, "free length", float(spring.free_length), "m"),
-                Expectation(item, "damping", float(spring.damping), "N·s/m")]
-        for end, point in (("a", spring.point_a), ("b", spring.point_b)):
-            out += [Expectation(item, f"point {end} {c}", float(point[k]), "m", size) for k, c in enumerate("xyz")]
-    g = np.asarray(system.gravity, float)
-    out += [Expectation(SCENE, f"gravity {c}", float(g[k]), "m/s²", 9.81) for k, c in enumerate("xyz")]
-    out += [Expectation(SCENE, "contacts", "off"), Expectation(SCENE, "joint limits", "none")]
-    return out
-
 
 def read_spatial(model) -> list[Reading]:
     plant, system, out = model.plant, model.system, []
@@ -105,11 +54,11 @@ def read_spatial(model) -> list[Reading]:
         damping = sum(float(np.sum(x.default_damping_vector())) for x in joints)
         out += [Reading(item, "kind", kind), Reading(item, "bodies", f"{j.body_i} → {j.body_j}"),
                 Reading(item, "damping", damping)]
-        for side, body, _, _ in _sides(j):
+        for side, body, _, _ in joint_sides(j):
             X = ends[body]
             point, R = X.translation(), X.rotation().matrix()
             out += [Reading(item, f"point {side} {c}", float(point[k])) for k, c in enumerate("xyz")]
-            for col in _axes(j.kind):
+            for col in axis_columns(j.kind):
                 axis = _drake_axis(joints, j.kind, body == tj.parent, R, col)
                 out += [Reading(item, f"axis {side} {'xyz'[col]}{c}", float(axis[k])) for k, c in enumerate("xyz")]
         limits += [x.position_lower_limits() for x in joints] + [-x.position_upper_limits() for x in joints]
@@ -120,9 +69,9 @@ def read_spatial(model) -> list[Reading]:
         out += [Reading(item, "kind", c.kind, f"closed by {how}", "set"),
                 Reading(item, "bodies", f"{c.body_i} → {c.body_j}", "", "set"),
                 Reading(item, "damping", float(c.damping), "", "set")]
-        for side, _, point, frame in _sides(c):
+        for side, _, point, frame in joint_sides(c):
             out += [Reading(item, f"point {side} {n}", float(point[k]), "", "set") for k, n in enumerate("xyz")]
-            for col in _axes(c.kind):
+            for col in axis_columns(c.kind):
                 out += [Reading(item, f"axis {side} {'xyz'[col]}{n}", float(frame[k, col]), "", "set")
                         for k, n in enumerate("xyz")]
     names = {int(body.index()): name for name, body in model.bodies.items()}

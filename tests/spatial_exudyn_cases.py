@@ -19,7 +19,7 @@ from mechval.reference.spatial.system import (BodyLoad, JointTorque, SpatialBody
                                               SpatialSystem, Spring)
 from mechval.reference.spatial.rotation import frame_from_axis
 from spatial_benchmarks import Bricard, FlyballGovernor
-from spatial_mechanisms import (GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia,
+from spatial_mechanisms import (HookesJoint, GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia,
                                 revolute, unit)
 from test_spatial_joint_kinds import sliding_body
 
@@ -71,17 +71,7 @@ def with_velocities(m) -> SpatialSystem:
 def universal_joint() -> SpatialSystem:
     """Hooke's joint between two driven-and-following shafts
     (tests/test_spatial_joint_kinds.py's scene)."""
-    beta = np.radians(35.0)
-    a2 = np.array([np.cos(beta), np.sin(beta), 0.0])
-    e_b = np.cross([0.0, 0.0, 1.0], a2)
-    return SpatialSystem(
-        "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
-                  SpatialBody("output", 1.0, tuple(0.2 * a2), inertia(31))),
-        (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
-         SpatialJoint("U", "universal", "input", "output", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
-                      frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
-         revolute("R2", GROUND, "output", 0.3 * a2, a2, e_b)),
-        (SpatialDrive("R1", DriveLaw(0.0, 2.0, 0.7)),), GRAVITY)
+    return HookesJoint().system
 
 
 def sliding(kind: str, axis, velocity, spin) -> SpatialSystem:

@@ -248,3 +248,26 @@ class Delta:
         p = np.asarray(platform_origin, dtype=float)
         return np.stack([closed.delta_arm_angle(p, self.base, self.plate, self.arm, self.rod, phi, self.branch)
                          for phi in self.legs], axis=-1)
+
+
+class HookesJoint:
+    """Hooke's joint: a driven input shaft along x̂ and an output shaft
+    along a2 = (cos β, sin β, 0), β = 35°, crossing at O and held in
+    bearings, joined by a universal joint whose pins are ẑ on the input
+    and e_b = ẑ × a2 on the output; tan θ2 = cos β·tan θ1 (Uicker, Pennock
+    & Shigley, *Theory of Machines and Mechanisms*, 4th ed. 2011)."""
+
+    beta = np.radians(35.0)
+    law = DriveLaw(0.0, 2.0, 0.7)
+
+    def __init__(self):
+        self.a2 = np.array([np.cos(self.beta), np.sin(self.beta), 0.0])
+        e_b = np.cross([0.0, 0.0, 1.0], self.a2)
+        self.system = SpatialSystem(
+            "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
+                      SpatialBody("output", 1.0, tuple(0.2 * self.a2), inertia(31))),
+            (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+             SpatialJoint("U", "universal", "input", "output", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                          frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
+             revolute("R2", GROUND, "output", 0.3 * self.a2, self.a2, e_b)),
+            (SpatialDrive("R1", self.law),), GRAVITY)

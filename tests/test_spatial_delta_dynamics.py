@@ -14,7 +14,6 @@ The differences bound the agreement: 1e-7 of the torques' peak (measured 1.9e-9)
 
 import numpy as np
 
-from mechval.reference.closed_forms import spatial as closed
 from mechval.reference.spatial.solver import SpatialSolver
 from spatial_mechanisms import GRAVITY, Delta
 
@@ -102,7 +101,6 @@ def virtual_power_torques(m: Delta, t: np.ndarray) -> np.ndarray:
             partial.append(lo), partial.append(hi)
         for name, body in bodies.items():
             G, R = at[0.0][name]
-            v = (at[DT][name][0] - at[-DT][name][0]) / (2 * DT)
             a = (at[DT][name][0] - 2 * G + at[-DT][name][0]) / DT ** 2
             om = angular(at[-DT][name][1], at[DT][name][1], R, DT)
             om_minus = angular(at[-2 * DT][name][1], at[0.0][name][1], at[-DT][name][1], DT)

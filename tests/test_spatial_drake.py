@@ -25,7 +25,7 @@ from mechval.reference.spatial.rotation import frame_from_axis, quaternion_to_ma
 from mechval.reference.spatial.system import BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint, \
     SpatialSystem, Spring
 from spatial_benchmarks import Bricard, FlyballGovernor
-from spatial_mechanisms import GRAVITY, RSSR, Bennett, Delta, HeavyTop, SphericalFourBar, TumblingBody, inertia, \
+from spatial_mechanisms import HookesJoint, GRAVITY, RSSR, Bennett, Delta, HeavyTop, SphericalFourBar, TumblingBody, inertia, \
     revolute, unit
 from test_spatial_joint_kinds import sliding_body
 
@@ -231,17 +231,7 @@ def test_fixed_universal_and_prismatic_joints():
 def hooke_joint() -> SpatialSystem:
     """Hooke's joint between two shafts on the ground, the input driven
     (tests/test_spatial_joint_kinds.py)."""
-    beta = np.radians(35.0)
-    a2 = np.array([np.cos(beta), np.sin(beta), 0.0])
-    e_b = np.cross([0.0, 0.0, 1.0], a2)
-    return SpatialSystem(
-        "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
-                  SpatialBody("output", 1.0, tuple(0.2 * a2), inertia(31))),
-        (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
-         SpatialJoint("U", "universal", "input", "output", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
-                      frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
-         revolute("R2", GROUND, "output", 0.3 * a2, a2, e_b)),
-        (SpatialDrive("R1", DriveLaw(0.0, 2.0, 0.7)),), GRAVITY)
+    return HookesJoint().system
 
 
 def spring_pendulum() -> SpatialSystem:

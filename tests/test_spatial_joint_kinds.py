@@ -15,7 +15,7 @@ from mechval.reference.spatial.dynamics import SpatialDynamics
 from mechval.reference.spatial.rotation import cross, frame_from_axis
 from mechval.reference.spatial.solver import SpatialSolver
 from mechval.reference.spatial.system import SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem
-from spatial_mechanisms import GRAVITY, inertia, revolute, turned_about, unit, wrapped
+from spatial_mechanisms import HookesJoint, GRAVITY, inertia, revolute, turned_about, unit, wrapped
 
 ROUNDING = 1e-12
 INTEGRATED = 1e-9
@@ -28,18 +28,8 @@ def test_universal_joint_transmits_as_hookes_joint():
     −sin θ1·cos β·cos θ2 + cos θ1·sin θ2 = 0, so tan θ2 = cos β·tan θ1
     (Hooke's joint, e.g. Uicker, Pennock & Shigley, *Theory of Machines and
     Mechanisms*, 4th ed. 2011, the universal joint's angular relation)."""
-    beta = np.radians(35.0)
-    a2 = np.array([np.cos(beta), np.sin(beta), 0.0])
-    e_b = np.cross([0.0, 0.0, 1.0], a2)
-    law = DriveLaw(0.0, 2.0, 0.7)
-    system = SpatialSystem(
-        "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
-                  SpatialBody("output", 1.0, tuple(0.2 * a2), inertia(31))),
-        (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
-         SpatialJoint("U", "universal", "input", "output", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
-                      frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
-         revolute("R2", GROUND, "output", 0.3 * a2, a2, e_b)),
-        (SpatialDrive("R1", law),), GRAVITY)
+    hooke = HookesJoint()
+    beta, a2, law, system = hooke.beta, hooke.a2, hooke.law, hooke.system
     t = np.linspace(0.0, 3.0, 301)
     sol = SpatialSolver(system).solve(t)
     pose, _, _ = body_state(system, sol.frame)

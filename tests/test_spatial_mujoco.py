@@ -27,7 +27,7 @@ from mechval.testing import SpatialContract
 from mechval.reference.spatial.system import (BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint,
                                               SpatialSystem, Spring)
 from spatial_benchmarks import Bricard, FlyballGovernor
-from spatial_mechanisms import GRAVITY, RSSR, Bennett, Delta, HeavyTop, SphericalFourBar, TumblingBody, inertia, \
+from spatial_mechanisms import HookesJoint, GRAVITY, RSSR, Bennett, Delta, HeavyTop, SphericalFourBar, TumblingBody, inertia, \
     revolute, unit
 from test_spatial_joint_kinds import sliding_body
 
@@ -186,17 +186,7 @@ def test_sliding_body_joint_kinds(kind, axis):
 def hooke() -> SpatialSystem:
     """Hooke's joint of tests/test_spatial_joint_kinds.py: a universal
     joint in the tree (the loop is cut at the output's bearing)."""
-    beta = np.radians(35.0)
-    a2 = np.array([np.cos(beta), np.sin(beta), 0.0])
-    e_b = np.cross([0.0, 0.0, 1.0], a2)
-    return SpatialSystem(
-        "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
-                  SpatialBody("output", 1.0, tuple(0.2 * a2), inertia(31))),
-        (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
-         SpatialJoint("U", "universal", "input", "output", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
-                      frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
-         revolute("R2", GROUND, "output", 0.3 * a2, a2, e_b)),
-        (SpatialDrive("R1", DriveLaw(0.0, 2.0, 0.7)),), GRAVITY)
+    return HookesJoint().system
 
 
 def test_universal_joint_in_the_tree():

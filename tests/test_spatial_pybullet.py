@@ -22,7 +22,7 @@ from mechval.reference.spatial.rotation import frame_from_axis
 from mechval.testing import SpatialContract
 from mechval.reference.spatial.system import BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem, Spring
 from spatial_benchmarks import Bricard, FlyballGovernor
-from spatial_mechanisms import GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia, revolute, unit
+from spatial_mechanisms import HookesJoint, GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia, revolute, unit
 from test_spatial_joint_kinds import sliding_body
 
 pytestmark = pytest.mark.engine
@@ -121,17 +121,7 @@ def test_universal_joint_in_a_loop(adapter):
     """Hooke's joint between a driven shaft and a held one: the universal
     joint is two revolute joints through a massless cross; the loop closes
     at the output's bearing (a revolute user-constraint pair)."""
-    beta = np.radians(35.0)
-    a2 = np.array([np.cos(beta), np.sin(beta), 0.0])
-    e_b = np.cross([0.0, 0.0, 1.0], a2)
-    system = SpatialSystem(
-        "Hooke", (SpatialBody("input", 1.0, (-0.2, 0.0, 0.0), inertia(30)),
-                  SpatialBody("output", 1.0, tuple(0.2 * a2), inertia(31))),
-        (revolute("R1", GROUND, "input", (-0.3, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
-         SpatialJoint("U", "universal", "input", "output", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
-                      frame_from_axis((0.0, 0.0, 1.0)), frame_from_axis(e_b)),
-         revolute("R2", GROUND, "output", 0.3 * a2, a2, e_b)),
-        (SpatialDrive("R1", DriveLaw(0.0, 2.0, 0.7)),), GRAVITY)
+    system = HookesJoint().system
     assert_within(ratios(adapter, system, np.linspace(0.0, 1.0, 51)))
 
 

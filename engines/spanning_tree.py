@@ -3,7 +3,8 @@ spanning tree of joints and close each loop by a constraint choose them."""
 
 from __future__ import annotations
 
-from typing import Callable
+from dataclasses import dataclass
+from typing import Any, Callable
 
 from mechval.model.mechanism import GROUND, Joint, Mechanism
 
@@ -29,3 +30,18 @@ def cut_joints(mech: Mechanism, rank: Callable[[Joint], object]) -> list[Joint]:
         else:
             group[a] = b
     return cuts
+
+
+@dataclass(frozen=True)
+class TreeJoint:
+    """A scene joint (planar or spatial) as a tree joint from `parent` to
+    `child`: the engine's coordinate is body_j's motion relative to body_i
+    when the child is body_j (`sign` +1), the reverse otherwise (−1)."""
+
+    joint: Any
+    parent: str
+    child: str
+
+    @property
+    def sign(self) -> float:
+        return 1.0 if self.child == self.joint.body_j else -1.0

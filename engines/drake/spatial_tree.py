@@ -25,25 +25,11 @@ from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.system import SpatialJoint, SpatialSystem
 
 from mechval.engines.base import Unrepresentable
-from mechval.engines.spanning_tree import cut_joints
+from mechval.engines.spanning_tree import TreeJoint, cut_joints
 
 #: Cut joints' kinds and how `spatial_model` closes them.
 CUT_KINDS = ("spherical", "universal", "revolute", "fixed")
 _RANK = {"fixed": 4, "revolute": 5, "universal": 6, "spherical": 7}
-
-
-@dataclass(frozen=True)
-class TreeJoint:
-    """A scene joint as a Drake tree joint from `parent` to `child`;
-    `sign` = +1 when the child is the joint's body_j."""
-
-    joint: SpatialJoint
-    parent: str
-    child: str
-
-    @property
-    def sign(self) -> float:
-        return 1.0 if self.child == self.joint.body_j else -1.0
 
 
 @dataclass(frozen=True)

@@ -23,22 +23,7 @@ import numpy as np
 from mechval.model.mechanism import GROUND, Joint, Mechanism
 
 from mechval.engines.base import Unrepresentable
-from mechval.engines.spanning_tree import cut_joints
-
-
-@dataclass(frozen=True)
-class TreeJoint:
-    """A mechanism joint as a Drake tree joint from `parent` to `child`.
-    `sign` = +1 when the child is the joint's body_j (Drake's coordinate is
-    then body_j's motion relative to body_i), −1 when reversed."""
-
-    joint: Joint
-    parent: str
-    child: str
-
-    @property
-    def sign(self) -> float:
-        return 1.0 if self.child == self.joint.body_j else -1.0
+from mechval.engines.spanning_tree import TreeJoint, cut_joints
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ from mechval.reference.spatial.rotation import matrix_to_quaternion
 from mechval.reference.spatial.system import SpatialJoint, SpatialSystem
 
 from mechval.engines.mujoco.model import INTEGRATORS, MIN_IZZ, MIN_MASS, SOLIMP
+from mechval.engines.spanning_tree import TreeJoint
 
 #: Which joints are cut first (higher first): those an equality closes.
 CUT_KINDS = ("spherical", "revolute", "universal")
@@ -57,18 +58,6 @@ class Pose:
 
     origin: np.ndarray
     rotation: np.ndarray
-
-
-@dataclass(frozen=True)
-class TreeJoint:
-    joint: SpatialJoint
-    parent: str
-    child: str
-
-    @property
-    def sign(self) -> float:
-        """+1 when the child is body_j (coordinate = θ or s), else −1."""
-        return 1.0 if self.child == self.joint.body_j else -1.0
 
 
 @dataclass(frozen=True)

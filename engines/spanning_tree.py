@@ -1,5 +1,7 @@
-"""The loops' cut joints of a mechanism, as the adapters that build a
-spanning tree of joints and close each loop by a constraint choose them."""
+"""The loops' cut joints of a mechanism (planar, or a spatial scene's
+`SpatialSystem`: both have bodies and joints between named bodies), as
+the adapters that build a spanning tree of joints and close each loop by
+a constraint choose them; and a tree joint's direction."""
 
 from __future__ import annotations
 

@@ -41,6 +41,7 @@ from mechval.engines.base import native_output_silenced
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.rotation import matrix_to_quaternion
 from mechval.reference.spatial.system import SpatialJoint, SpatialSystem
+from mechval.engines import spanning_tree
 
 #: Lever (m) of a revolute loop joint's second point-to-point constraint
 #: along the axis: any length works; its moment arm turns the second
@@ -127,21 +128,7 @@ def tree_rank(system: SpatialSystem):
 
 def cut_joints(system: SpatialSystem) -> list[SpatialJoint]:
     """The joints a spanning tree (Kruskal in `tree_rank` order) leaves out."""
-    group = {name: name for name in [GROUND] + [b.name for b in system.bodies]}
-
-    def root(name: str) -> str:
-        while group[name] != name:
-            name = group[name]
-        return name
-
-    cuts = []
-    for j in sorted(system.joints, key=tree_rank(system)):
-        a, b = root(j.body_i), root(j.body_j)
-        if a == b:
-            cuts.append(j)
-        else:
-            group[a] = b
-    return cuts
+    return spanning_tree.cut_joints(system, tree_rank(system))
 
 
 def closable(system: SpatialSystem, joint: SpatialJoint) -> bool:

@@ -153,7 +153,7 @@ def _bodies(top: Reader, ground: dict) -> tuple[tuple[Body, ...], dict[str, dict
 def _point(reader: Reader, key: str, text: Any, points: dict) -> tuple[str, tuple[float, float]]:
     """Resolve "body.point" (the ground's points as "ground.point")."""
     if not isinstance(text, str) or text.count(".") != 1:
-        reader.fail(key, f"expected \"body.point\", got {text!r}")
+        reader.fail(key, f"expected \"body.point\", got {shown(text)}")
     body, point = text.split(".")
     if body not in points:
         reader.fail(key, f"unknown body {body!r} (bodies: {', '.join(sorted(points))})")
@@ -166,7 +166,7 @@ def _point(reader: Reader, key: str, text: Any, points: dict) -> tuple[str, tupl
 def _between(reader: Reader, points: dict) -> tuple[tuple[str, tuple], tuple[str, tuple]]:
     value = reader.table.get("between")
     if not isinstance(value, list) or len(value) != 2:
-        reader.fail("between", f"expected two points [\"body.point\", \"body.point\"], got {value!r}")
+        reader.fail("between", f"expected two points [\"body.point\", \"body.point\"], got {shown(value)}")
     return _point(reader, "between", value[0], points), _point(reader, "between", value[1], points)
 
 

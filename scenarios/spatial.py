@@ -30,7 +30,7 @@ from mechval.reference.spatial.rotation import exp_map, frame_from_axis, quatern
 from mechval.reference.spatial.system import (DRIVEN_KINDS, JOINT_KINDS, BodyLoad, JointTorque, SpatialBody,
                                               SpatialDrive, SpatialJoint, SpatialSystem, Spring, check_inertia)
 
-from .planar import NAME, _array, _name, _named
+from .planar import NAME, _array, _between as planar_between, _name, _named
 from .spatial_checks import check_spatial
 from .tables import Reader, heading, run_tables, shown
 
@@ -154,24 +154,9 @@ def _points(table: Reader, reserved: str = "") -> dict[str, Vec3]:
     return points
 
 
-def _point(reader: Reader, key: str, text: Any, points: dict) -> tuple[str, Vec3]:
-    """Resolve "body.point" (the ground's points as "ground.point")."""
-    if not isinstance(text, str) or text.count(".") != 1:
-        reader.fail(key, f"expected \"body.point\", got {shown(text)}")
-    body, point = text.split(".")
-    if body not in points:
-        reader.fail(key, f"unknown body {body!r} (bodies: {', '.join(sorted(points))})")
-    if point not in points[body]:
-        known = ", ".join(sorted(points[body])) or "none"
-        reader.fail(key, f"{body!r} has no point {point!r} (its points: {known})")
-    return body, points[body][point]
-
-
 def _between(reader: Reader, points: dict) -> tuple[tuple[str, Vec3], tuple[str, Vec3]]:
-    value = reader.table.get("between")
-    if not isinstance(value, list) or len(value) != 2:
-        reader.fail("between", f"expected two points [\"body.point\", \"body.point\"], got {shown(value)}")
-    ends = _point(reader, "between", value[0], points), _point(reader, "between", value[1], points)
+    """The planar files' "between" (two "body.point"s), on two bodies."""
+    ends = planar_between(reader, points)
     if ends[0][0] == ends[1][0]:
         reader.fail("between", f"joins {ends[0][0]!r} to itself")
     return ends

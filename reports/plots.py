@@ -19,6 +19,7 @@ samples is thinned to the minimum and maximum of every window of samples
 from __future__ import annotations
 
 import base64
+import dataclasses
 import zlib
 from functools import lru_cache
 from pathlib import Path
@@ -31,7 +32,7 @@ from mechval.model.kinematics import point_position, rotate
 from mechval.model.mechanism import GROUND, Mechanism, SpringDamper
 from mechval.records.signals import SIGNAL_CLASS, Signals
 
-from .spatial_plots import spatial_figure
+from .spatial_plots import ATTITUDE_ANGLES, spatial_figure, with_attitude_angles
 
 UNITS = {"angle": "rad", "position": "m", "velocity": "m/s", "acceleration": "m/s²", "force": "N", "torque": "N·m"}
 #: Units of a body's rates (theta2, omega2, B.alpha: the quantity after the last dot).
@@ -165,8 +166,10 @@ class _Stream:
 
 
 def unit(signal: str) -> str:
-    cls = SIGNAL_CLASS[signal]
     quantity = signal.rpartition(".")[2]
+    if quantity in ATTITUDE_ANGLES:
+        return "rad"
+    cls = SIGNAL_CLASS[signal]
     if quantity in QUATERNION:
         return "1"
     angular = quantity.startswith(("omega", "alpha")) or quantity in ("wx", "wy", "wz")
@@ -183,7 +186,11 @@ def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapp
     """One scenario's signals for the page's overlay and error figures: the
     sample instants as [first, last, count], per signal the reference, per
     run and signal the error against it and the run's bound; arrays as
-    entries of one code stream (see module doc), thinned where long."""
+    entries of one code stream (see module doc), thinned where long. A
+    spatial body's attitude angles are drawn too (`with_attitude_angles`:
+    display only, with no bound)."""
+    reference = dataclasses.replace(reference, frame=with_attitude_angles(reference.frame))
+    results = {label: dataclasses.replace(r, frame=with_attitude_angles(r.frame)) for label, r in results.items()}
     stream = _Stream()
     t = reference.t
     names = [c for c in reference.frame.columns if c != "t"]

@@ -75,3 +75,31 @@ def spatial_figure(mech: Mechanism, times: np.ndarray, instants: int = 4) -> dic
     scene = dict(aspectmode="data", **{f"{c}axis": dict(title=dict(text=f"{c} [m]")) for c in "xyz"})
     layout = dict(height=420, margin=dict(l=0, r=0, t=20, b=0), scene=scene, legend=dict(font=dict(size=10)))
     return {"data": traces, "layout": layout}
+
+
+#: A spatial body's attitude as the angles a user reads, drawn beside its
+#: quaternion on the page: intrinsic z-y-x (yaw, pitch, roll) Tait–Bryan
+#: angles from the world axes (rad), each unwrapped along the run. Display
+#: only: they wrap and lock at pitch ±π/2, so the comparison judges the
+#: quaternion (up to its sign), never these.
+ATTITUDE_ANGLES = ("yaw", "pitch", "roll")
+
+
+def with_attitude_angles(frame: pd.DataFrame) -> pd.DataFrame:
+    """`frame` with B.yaw, B.pitch, B.roll after each body's B.qz."""
+    bodies = [name[:-3] for name in frame.columns if name.endswith(".qw")]
+    if not bodies:
+        return frame
+    added = {}
+    for body in bodies:
+        R = quaternion_to_matrix(frame[[f"{body}.q{c}" for c in "wxyz"]].to_numpy(dtype=float))
+        yaw = np.unwrap(np.arctan2(R[:, 1, 0], R[:, 0, 0]))
+        pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
+        roll = np.unwrap(np.arctan2(R[:, 2, 1], R[:, 2, 2]))
+        added.update({f"{body}.yaw": yaw, f"{body}.pitch": pitch, f"{body}.roll": roll})
+    order = []
+    for name in frame.columns:
+        order.append(name)
+        if name.endswith(".qz") and name[:-3] in bodies:
+            order += [f"{name[:-3]}.{a}" for a in ATTITUDE_ANGLES]
+    return frame.assign(**added)[order]

@@ -216,3 +216,26 @@ def test_a_spatial_scene_has_a_baseline_an_engine_run_checks_against(tmp_path, c
     assert main(["baseline", "save", *args]) == 0
     assert main(["baseline", "check", *args]) == 0
     assert "baseline check: ok" in capsys.readouterr().out
+
+
+def test_the_page_draws_a_bodys_attitude_as_yaw_pitch_and_roll():
+    """Display only: a body turning about z at 10 rad/s reads yaw = 10·t,
+    unwrapped past ±π, pitch and roll zero; the angles get no bound and
+    are no signal the comparison judges."""
+    from mechval.model.drive import DriveLaw
+    from mechval.reference.spatial.rotation import frame_from_axis
+    from mechval.reference.spatial.system import SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem
+    from mechval.reports.spatial_plots import with_attitude_angles
+
+    frame = frame_from_axis((0.0, 0.0, 1.0))
+    system = SpatialSystem("turning", (SpatialBody("rotor", 1.0, (0.0, 0.0, 0.0), np.diag([0.01, 0.02, 0.03])),),
+                           (SpatialJoint("bearing", "revolute", "ground", "rotor", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                                         frame, frame),), (SpatialDrive("bearing", DriveLaw(0, 10, 0), "spin"),))
+    reference = simulate(ss.scenario("turning", system, 1.0, 101), "reference")
+    angles = with_attitude_angles(reference.frame)
+    assert list(angles.columns[list(angles.columns).index("rotor.qz") + 1:][:3]) == ["rotor.yaw", "rotor.pitch",
+                                                                                      "rotor.roll"]
+    np.testing.assert_allclose(angles["rotor.yaw"], 10.0 * reference.t, rtol=0, atol=1e-12)
+    assert np.abs(angles[["rotor.pitch", "rotor.roll"]].to_numpy()).max() <= 1e-12
+    assert "rotor.yaw" not in reference.frame and "rotor.yaw" not in build_mechanism(
+        ss.scenario("turning", system, 1.0, 101)).signal_map

@@ -39,6 +39,12 @@ def builtin_files() -> dict[str, Path]:
     return {path.stem: path for path in sorted(folder.glob("*.toml"), key=lambda path: path.stem)}
 
 
+def spatial_files() -> dict[str, Path]:
+    """The spatial built-ins by name ("spatial/NAME", scenarios/spatial/)."""
+    folder = Path(importlib.util.find_spec("mechval.scenarios").submodule_search_locations[0]) / "spatial"
+    return {f"spatial/{path.stem}": path for path in sorted(folder.glob("*.toml"), key=lambda path: path.stem)}
+
+
 def one_line(text: str, limit: int | None = None) -> str:
     """`mechval.model.scenario.one_line` (a test checks they agree), which the
     listing cannot import: `text` with line breaks and other non-printable
@@ -49,7 +55,7 @@ def one_line(text: str, limit: int | None = None) -> str:
 
 def list_command() -> int:
     print("scenarios:")
-    for name, path in builtin_files().items():
+    for name, path in {**builtin_files(), **spatial_files()}.items():
         s = scenario_header(path)
         tags = f" [{', '.join(s.tags)}]" if s.tags else ""
         print(one_line(f"  {name:<28} {s.mechanism:<13}{tags} {s.description}"))

@@ -239,3 +239,14 @@ def test_the_page_draws_a_bodys_attitude_as_yaw_pitch_and_roll():
     assert np.abs(angles[["rotor.pitch", "rotor.roll"]].to_numpy()).max() <= 1e-12
     assert "rotor.yaw" not in reference.frame and "rotor.yaw" not in build_mechanism(
         ss.scenario("turning", system, 1.0, 101)).signal_map
+
+
+def test_mechval_list_names_the_spatial_built_ins(capsys):
+    from mechval.harness.cli import main
+    from mechval.scenarios.loader import spatial_builtin_names
+
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for name in spatial_builtin_names():
+        assert f"  {name} " in out
+    assert any(line.startswith("  spatial/t-handle") and "[extra]" in line for line in out.splitlines())

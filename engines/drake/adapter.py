@@ -61,6 +61,13 @@ from mechval.settings import TIMESTEP, Choice, Number, Setting
 from mechval.engines.base import EngineAdapter, RawRun, RunInfo, default_step, peak_rates
 
 
+def sap_defaults(timestep: float, forward_dynamics: bool) -> dict[str, Any]:
+    """The discrete plant's defaults, planar or spatial (`default_settings`
+    says why each)."""
+    return {"timestep": timestep, "refine": 1, "drive_stiffness": 1e4, "drive_damping": 0.0,
+            "preroll_steps": 0 if forward_dynamics else 20, "near_rigid_threshold": 1.0}
+
+
 class DrakeAdapter(EngineAdapter):
     """Drake 1.51.1; see the module docstring for the conversions."""
 
@@ -123,17 +130,9 @@ class DrakeAdapter(EngineAdapter):
             return spatial_defaults(mechanism.spatial, times, (peak_rates(mechanism, times) if rates is None
                                                                 else rates).rate)
         rate = (peak_rates(mechanism, times) if rates is None else rates).rate
-        return {
-            "timestep": default_step(mechanism, times, rate=rate),
-            "refine": 1,
-            "drive_stiffness": 1e4,
-            "drive_damping": 0.0,
-            "preroll_steps": 0 if mechanism.forward_dynamics else 20,
-            "near_rigid_threshold": 1.0,
-            # The planar plant is always SAP; `accuracy` is read by "rk3" only.
-            "integrator": "sap",
-            "accuracy": 1e-6,
-        }
+        # The planar plant is always SAP; `accuracy` is read by "rk3" only.
+        return {**sap_defaults(default_step(mechanism, times, rate=rate), mechanism.forward_dynamics),
+                "integrator": "sap", "accuracy": 1e-6}
 
     def check_settings(self, mechanism: Mechanism, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
         """A pre-roll asked of a torque-driven or free run, which starts at

@@ -22,6 +22,7 @@ from mechval.reference.spatial.rotation import matrix_to_quaternion
 from mechval.reference.spatial.system import SpatialSystem
 
 from mechval.engines.base import RawRun, RunInfo, Unrepresentable, default_step
+from mechval.engines.drake.adapter import sap_defaults
 from mechval.engines.drake.run import STEP_MARGIN
 from mechval.engines.drake.spatial_model import SpatialModel, build, joint_frames, world_pose
 from mechval.engines.drake.spatial_reactions import Motion, Sample, reaction_columns
@@ -62,16 +63,8 @@ def spatial_defaults(system: SpatialSystem, times: np.ndarray, rate: float | Non
     T-handle's attitude: 8e-3 off after 4 s at the rule's step with SAP,
     7e-7 with RK3: docs/engines.md); SAP otherwise."""
     rate = spatial_rate(system, times) if rate is None else rate
-    return {
-        "timestep": default_step(None, times, rate=rate),
-        "refine": 1,
-        "drive_stiffness": 1e4,
-        "drive_damping": 0.0,
-        "preroll_steps": 0 if system.forward_dynamics else 20,
-        "near_rigid_threshold": 1.0,
-        "integrator": "sap" if has_constraints(system) else "rk3",
-        "accuracy": ACCURACY,
-    }
+    return {**sap_defaults(default_step(None, times, rate=rate), system.forward_dynamics),
+            "integrator": "sap" if has_constraints(system) else "rk3", "accuracy": ACCURACY}
 
 
 def start_of(system: SpatialSystem, times: np.ndarray, steps: int, dt: float) -> tuple[float, int, dict]:

@@ -5,7 +5,7 @@ sample read out (`readout`)."""
 from __future__ import annotations
 
 import time
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 import pandas as pd
@@ -27,6 +27,26 @@ def steps_per_sample(times: np.ndarray, dt: float) -> int:
     return max(1, int(round(float(times[1] - times[0]) / dt)))
 
 
+def march(times: np.ndarray, timestep: float, q, v, advance: Callable, read: Callable) -> tuple[list[dict], float, int]:
+    """From (q, v) at times[0], `advance(t0, q, v, dt, steps)` from sample to
+    sample in whole steps, each sample read out by `read(t, q, v)` →
+    (row, residual): the rows, the largest residual and the steps per
+    sample. A state gone non-finite ends as one FloatingPointError."""
+    steps = steps_per_sample(times, float(timestep))
+    dt = float(times[1] - times[0]) / steps if steps else 0.0
+    rows, residual = [], 0.0
+    with np.errstate(all="ignore"):         # a blow-up ends as one error below, not numpy warnings
+        for n, t in enumerate(times):
+            if n:
+                q, v = advance(float(times[n - 1]), q, v, dt, steps)
+            if not (np.isfinite(q).all() and np.isfinite(v).all()):
+                raise FloatingPointError(f"pinocchio: the state is not finite at t = {float(t)!r}")
+            row, off = read(float(t), q, v)
+            rows.append({"t": float(t)} | row)
+            residual = max(residual, off)
+    return rows, residual, steps
+
+
 def simulate_run(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
     clock = time.perf_counter()
     pm = build_model(mech)
@@ -39,18 +59,9 @@ def simulate_run(mech: Mechanism, times: np.ndarray, settings: Mapping[str, Any]
     build_time = time.perf_counter() - clock
 
     clock = time.perf_counter()
-    steps = steps_per_sample(times, float(settings["timestep"]))
-    dt = float(times[1] - times[0]) / steps if steps else 0.0
-    rows, residual = [], 0.0
-    with np.errstate(all="ignore"):         # a blow-up ends as one error below, not numpy warnings
-        for n, t in enumerate(times):
-            if n:
-                q, v = rk4(dynamics, float(times[n - 1]), q, v, dt, steps)
-            if not (np.isfinite(q).all() and np.isfinite(v).all()):
-                raise FloatingPointError(f"pinocchio: the state is not finite at t = {float(t)!r}")
-            row, off = sample(pm, dynamics, mech, float(t), q, v)
-            rows.append({"t": float(t)} | row)
-            residual = max(residual, off)
+    rows, residual, steps = march(times, settings["timestep"], q, v,
+                                  lambda t0, q, v, dt, n: rk4(dynamics, t0, q, v, dt, n),
+                                  lambda t, q, v: sample(pm, dynamics, mech, t, q, v))
     wall_time = time.perf_counter() - clock
 
     frame = pd.DataFrame(rows)

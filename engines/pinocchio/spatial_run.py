@@ -22,7 +22,7 @@ from mechval.reference.spatial.system import SpatialSystem
 
 from mechval.engines.base import RawRun, RunInfo, Unrepresentable
 from mechval.engines.pinocchio.adapter import RAD_PER_STEP
-from mechval.engines.pinocchio.run import steps_per_sample
+from mechval.engines.pinocchio.run import march
 from mechval.engines.pinocchio.spatial_dynamics import SpatialDynamics, rkmk4
 from mechval.engines.pinocchio.spatial_model import build_spatial_model, start_state
 from mechval.engines.pinocchio.spatial_readout import sample
@@ -84,18 +84,9 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     build_time = time.perf_counter() - clock
 
     clock = time.perf_counter()
-    steps = steps_per_sample(times, float(settings["timestep"]))
-    dt = float(times[1] - times[0]) / steps if steps else 0.0
-    rows, residual = [], 0.0
-    with np.errstate(all="ignore"):         # a blow-up ends as one error below, not numpy warnings
-        for n, t in enumerate(times):
-            if n:
-                q, v = rkmk4(dynamics, float(times[n - 1]), q, v, dt, steps)
-            if not (np.isfinite(q).all() and np.isfinite(v).all()):
-                raise FloatingPointError(f"pinocchio: the state is not finite at t = {float(t)!r}")
-            row, off = sample(sm, dynamics, system, float(t), q, v)
-            rows.append({"t": float(t)} | row)
-            residual = max(residual, off)
+    rows, residual, steps = march(times, settings["timestep"], q, v,
+                                  lambda t0, q, v, dt, n: rkmk4(dynamics, t0, q, v, dt, n),
+                                  lambda t, q, v: sample(sm, dynamics, system, t, q, v))
     wall_time = time.perf_counter() - clock
     frame = pd.DataFrame(rows)[["t"] + system.motion_columns() + system.reaction_columns()]
     info = {

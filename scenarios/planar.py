@@ -225,7 +225,8 @@ def _drives(top: Reader, joints: tuple[Joint, ...]) -> tuple[Drive, ...]:
 
 def _torques(top: Reader, joints: tuple[Joint, ...], drives: tuple[Drive, ...]) -> tuple[TorqueLaw, ...]:
     """[[torque]]: applied torque laws T(t) = torque + amplitude·sin(2π·frequency·t + phase)
-    at revolute joints, each named after its joint unless given a `name`."""
+    at revolute joints, each named after its joint unless given a `name`
+    (a spatial file's joints and drives too: they have the same names)."""
     kinds = {j.name: j.kind for j in joints}
     driven = {d.joint for d in drives}
     laws, names = [], {d.name for d in drives} | {d.joint for d in drives}
@@ -237,7 +238,7 @@ def _torques(top: Reader, joints: tuple[Joint, ...], drives: tuple[Drive, ...]) 
         name = _name(entry) if "name" in entry.table else joint
         law = Reader(entry.source, f"torque.{name}", entry.table)
         if kinds[joint] != "revolute":
-            law.fail("joint", f"joint {joint!r} is prismatic: a torque law acts at a revolute joint")
+            law.fail("joint", f"joint {joint!r} is {kinds[joint]}: a torque law acts at a revolute joint")
         if joint in driven:
             law.fail("joint", f"joint {joint!r} has a drive, which prescribes its motion whatever the torque")
         if name in names:

@@ -23,14 +23,14 @@ from typing import Any, Collection, Mapping
 import numpy as np
 
 from mechval.model.drive import DriveLaw
-from mechval.model.mechanism import GROUND, TorqueLaw
+from mechval.model.mechanism import GROUND
 from mechval.model.scenario import Scenario, ScenarioError
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.rotation import exp_map, frame_from_axis, quaternion_to_matrix
 from mechval.reference.spatial.system import (DRIVEN_KINDS, JOINT_KINDS, BodyLoad, JointTorque, SpatialBody,
                                               SpatialDrive, SpatialJoint, SpatialSystem, Spring, check_inertia)
 
-from .planar import NAME, _array, _between as planar_between, _name, _named
+from .planar import NAME, _array, _between as planar_between, _name, _named, _torques as planar_torques
 from .spatial_checks import check_spatial
 from .tables import Reader, heading, run_tables, shown
 
@@ -308,28 +308,7 @@ def _drives(top: Reader, joints: tuple[SpatialJoint, ...]) -> tuple[SpatialDrive
 def _torques(top: Reader, joints: tuple[SpatialJoint, ...],
              drives: tuple[SpatialDrive, ...]) -> tuple[JointTorque, ...]:
     """[[torque]] as in planar files: T(t) about a revolute joint's axis zi."""
-    kinds = {j.name: j.kind for j in joints}
-    driven = {d.joint for d in drives}
-    laws, names = [], {d.name for d in drives} | driven
-    for entry in _array(top, "torque"):
-        entry.only({"name", "joint", "torque", "amplitude", "frequency", "phase"})
-        joint = entry.string("joint")
-        if joint not in kinds:
-            entry.fail("joint", f"unknown joint {joint!r} (joints: {', '.join(sorted(kinds))})")
-        name = _name(entry) if "name" in entry.table else joint
-        law = Reader(entry.source, f"torque.{name}", entry.table)
-        if kinds[joint] != "revolute":
-            law.fail("joint", f"joint {joint!r} is {kinds[joint]}: a torque law acts at a revolute joint")
-        if joint in driven:
-            law.fail("joint", f"joint {joint!r} has a drive, which prescribes its motion whatever the torque")
-        if name in names:
-            law.fail("name", f"a drive or another torque law is named {name!r} (give this one a `name`)")
-        names.add(name)
-        value = TorqueLaw(joint, law.number("torque"), law.number("amplitude", default=0.0),
-                          law.number("frequency", default=0.0, nonnegative=True), law.number("phase", default=0.0),
-                          name=name)
-        laws.append(JointTorque(joint, value, name))
-    return tuple(laws)
+    return tuple(JointTorque(law.joint, law, law.name) for law in planar_torques(top, joints, drives))
 
 
 def _forces(top: Reader, points: dict) -> tuple[tuple[Spring, ...], tuple[BodyLoad, ...]]:

@@ -250,3 +250,22 @@ def test_mechval_list_names_the_spatial_built_ins(capsys):
     for name in spatial_builtin_names():
         assert f"  {name} " in out
     assert any(line.startswith("  spatial/t-handle") and "[extra]" in line for line in out.splitlines())
+
+
+@pytest.mark.parametrize("case", ["Bricard (free, redundant)", "Bennett (prescribed, redundant)"])
+def test_the_motion_alone_is_the_full_solutions_motion(case):
+    """What the step rule reads (`Mechanism.motion`, no reactions: their
+    uniqueness check where rows are redundant cost most of a dense grid's
+    solve) is the full reference's motion columns, the same numbers."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    from spatial_benchmarks import Bricard
+    from spatial_mechanisms import Bennett
+    from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
+    system = Bricard().system if case.startswith("Bricard") else Bennett().system
+    t = np.linspace(0.0, 0.2, 41)
+    full = spatial_solution(system, t).frame
+    motion = spatial_mechanism(system).motion(t)
+    assert list(motion.columns) == ["t", *system.motion_columns()]
+    assert np.abs(motion.to_numpy() - full[motion.columns].to_numpy()).max() <= ROUNDING

@@ -40,6 +40,8 @@ METHODS = {
     "Radau": "Radau IIA (order 5, implicit) on (G, quaternion, Ġ, ω), constraints at the acceleration level "
              "(Nikravesh 1988, §11.6; Hairer & Wanner, Solving ODEs II, §IV.8)",
 }
+#: Outputs evaluated at once after the integration (memory, not accuracy).
+OUTPUT_CHUNK = 2048
 #: Forward-difference step of the implicit method's Jacobian, relative to
 #: each state component (at least FD_FLOOR): about √ε.
 FD_STEP, FD_FLOOR = 1e-7, 1e-3
@@ -157,14 +159,27 @@ class SpatialDynamics:
         F = self._rates(t, np.vstack([y, y + np.diag(h)]))
         return ((F[1:] - F[0]) / h[:, None]).T
 
+    def _outputs(self, pose: Pose, w: np.ndarray, t: np.ndarray) -> tuple:
+        """ẇ, λ, Φq and the largest scaled position and velocity drifts at
+        some outputs (`solve` asks in chunks: an (N, m, n) Jacobian of a
+        dense grid at once would take hundreds of MB)."""
+        dw, lam = self.accelerations(pose, w, t)
+        out = self.c.evaluate(pose, t, w)
+        row = self.solver.scaling.row
+        rates = np.einsum("nrk,nk->nr", out["jac"], w.reshape(len(t), -1)) - out["rhs"]
+        return (dw, lam, out["jac"], float(np.abs(out["phi"] * row).max(initial=0.0)),
+                float(np.abs(rates * row).max(initial=0.0)))
+
     def initial_vector(self) -> np.ndarray:
         w, p = self.w0[0], matrix_to_quaternion(self.pose0.A[0])
         return np.concatenate([self.pose0.G[0].ravel(), p.ravel(), w.ravel()])
 
-    def solve(self, t: np.ndarray, rtol: float = RTOL, atol: float = ATOL, method: str = "DOP853") -> SpatialSolution:
+    def solve(self, t: np.ndarray, rtol: float = RTOL, atol: float = ATOL, method: str = "DOP853",
+              reactions: bool = True) -> SpatialSolution:
         """The motion at instants t, integrated by `method`: "DOP853"
         (explicit, the default) or "Radau" (implicit, order 5, for stiff
-        force elements, with `_jacobian`)."""
+        force elements, with `_jacobian`); without `reactions`, the motion
+        columns only (`SpatialSolver.solve`)."""
         if method not in METHODS:
             raise MechanismError("method", f"unknown integrator {method!r} (known: {', '.join(METHODS)})")
         t = np.asarray(t, dtype=float)
@@ -188,14 +203,12 @@ class SpatialDynamics:
                 raise MechanismError("time", f"the integration stopped: {run.message}")
             states, steps = run.y.T, int(run.t.size)
         pose, w = self._unpack(states)
-        dw, lam = self.accelerations(pose, w, t)
-        out = self.c.evaluate(pose, t, w)
-        scaling = self.solver.scaling
-        drift_q = np.abs(out["phi"] * scaling.row).max(initial=0.0)
-        rates = np.einsum("nrk,nk->nr", out["jac"], w.reshape(len(t), -1)) - out["rhs"]
-        drift_v = np.abs(rates * scaling.row).max(initial=0.0)
-        state = State(t, pose, w, dw, lam, out["jac"], tuple(self.rows))
-        frame, missing = self.solver.frame_of(state, self.found)
+        parts = [self._outputs(Pose(pose.G[k], pose.A[k]), w[k], t[k])
+                 for k in (slice(s, s + OUTPUT_CHUNK) for s in range(0, len(t), OUTPUT_CHUNK))]
+        dw, lam, jac = (np.concatenate(x) for x in zip(*(p[:3] for p in parts)))
+        drift_q, drift_v = max(p[3] for p in parts), max(p[4] for p in parts)
+        state = State(t, pose, w, dw, lam, jac, tuple(self.rows))
+        frame, missing = self.solver.frame_of(state, self.found, reactions)
         E = energy(self.system, pose, w)
         facts = {"method": METHODS[method], "rtol": rtol, "atol": atol, "steps": steps,
                  "evaluations": self.evaluations, "constraint_drift_max": float(drift_q),

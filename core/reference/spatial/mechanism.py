@@ -22,25 +22,25 @@ from mechval.reference.spatial.system import SpatialSystem
 KIND = "spatial"
 
 
-def spatial_solution(system: SpatialSystem, t: np.ndarray) -> SpatialSolution:
+def spatial_solution(system: SpatialSystem, t: np.ndarray, reactions: bool = True) -> SpatialSolution:
     """The reference at instants t: solved positions, rates and reactions
-    of a prescribed scene; a torque-driven or free one integrated from its
-    initial state at t[0]."""
+    (without `reactions`: the motion columns only) of a prescribed scene;
+    a torque-driven or free one integrated from its initial state at t[0]."""
     t = np.asarray(t, dtype=float)
     if system.forward_dynamics:
-        return SpatialDynamics(system, system.velocities, t0=float(t[0])).solve(t)
-    return solve_spatial(system, t)
+        return SpatialDynamics(system, system.velocities, t0=float(t[0])).solve(t, reactions=reactions)
+    return solve_spatial(system, t, reactions)
 
 
 class _Motion:
-    """The reference's motion columns at instants t (each call solves)."""
+    """The reference's motion columns at instants t (each call solves; the
+    reactions are not computed)."""
 
     def __init__(self, system: SpatialSystem):
         self.system = system
 
     def __call__(self, t: np.ndarray) -> pd.DataFrame:
-        frame = spatial_solution(self.system, t).frame
-        return frame[["t", *self.system.motion_columns()]].reset_index(drop=True)
+        return spatial_solution(self.system, t, reactions=False).frame.reset_index(drop=True)
 
 
 def spatial_signal_map(system: SpatialSystem) -> dict[str, str]:

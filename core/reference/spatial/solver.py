@@ -176,7 +176,10 @@ class SpatialSolver:
         self._march(pose, found, t0, t_end)
         return found
 
-    def solve(self, t: np.ndarray) -> SpatialSolution:
+    def solve(self, t: np.ndarray, reactions: bool = True) -> SpatialSolution:
+        """The solution at instants t; without `reactions`, its motion
+        columns only (what the step rule reads: the reactions' uniqueness
+        check costs more than the motion where rows are redundant)."""
         t = np.asarray(t, dtype=float)
         if t.ndim != 1 or not t.size or not np.isfinite(t).all() or np.any(np.diff(t) < 0):
             raise MechanismError("time", "instants must be finite and nondecreasing")
@@ -226,9 +229,10 @@ class SpatialSolver:
                                            state.inverse / column[:, None] / row)
             table[0, index] = tt
             table[1:, index] = self._columns(state)
-            if found.redundant:    # −Φqᵀ·λ per body: unique however λ is split
+            if found.redundant and reactions:    # −Φqᵀ·λ per body: unique however λ is split
                 resultants[:, index] = -np.einsum("nrk,nr->kn", state.jac, state.lam)
-            return self._undetermined(state) if found.redundant else np.zeros(len(columns) - 1, dtype=bool)
+                return self._undetermined(state)
+            return np.zeros(len(columns) - 1, dtype=bool)
 
         pool = ThreadPoolExecutor(max_workers=min(len(parts), os.cpu_count() or 1))
         try:
@@ -240,7 +244,7 @@ class SpatialSolver:
             k = int(np.argmax(condition))
             raise MechanismError("time", f"the Jacobian is singular at t = {t[k]:.6g} s (condition "
                                          f"{condition[k]:.3g} > {SINGULAR_CONDITION:.0e})")
-        frame, missing = self.finish(table, undetermined, found, resultants)
+        frame, missing = self.finish(table, undetermined, found, resultants, reactions)
         facts = {"method": METHOD, "grubler": found.grubler, "mobility": found.mobility, "rank": found.rank,
                  "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
                  "continuation_nodes": len(nodes)}
@@ -265,12 +269,14 @@ class SpatialSolver:
     # -- columns ------------------------------------------------------------------------------
 
     def finish(self, table: np.ndarray, undetermined: np.ndarray, found: Structure,
-               resultants: np.ndarray) -> tuple[pd.DataFrame, dict[str, str]]:
+               resultants: np.ndarray, reactions: bool = True) -> tuple[pd.DataFrame, dict[str, str]]:
         """The raw frame from a table of columns: reactions that are not
         unique blanked with their reason, resultants added where rows are
-        redundant."""
+        redundant; without `reactions`, the motion columns only."""
         columns = ["t"] + self.system.motion_columns() + self.system.reaction_columns()
         frame = pd.DataFrame(table.T, columns=columns, copy=False)
+        if not reactions:
+            return frame.iloc[:, :1 + len(self.system.motion_columns())], {}
         missing = {}
         for k in np.flatnonzero(undetermined):
             frame[columns[k]] = np.nan
@@ -282,13 +288,13 @@ class SpatialSolver:
             frame = frame.assign(**dict(zip(names, resultants)))
         return frame, missing
 
-    def frame_of(self, s: State, found: Structure) -> tuple[pd.DataFrame, dict[str, str]]:
+    def frame_of(self, s: State, found: Structure, reactions: bool = True) -> tuple[pd.DataFrame, dict[str, str]]:
         """`finish` for one state (the dynamics' outputs)."""
         table = np.concatenate([s.t[None], self._columns(s)])
         flags = np.zeros(len(table), dtype=bool)
-        if found.redundant:
+        if found.redundant and reactions:
             flags[1:] = self._undetermined(s)
-        return self.finish(table, flags, found, -np.einsum("nrk,nr->kn", s.jac, s.lam))
+        return self.finish(table, flags, found, -np.einsum("nrk,nr->kn", s.jac, s.lam), reactions)
 
     def _columns(self, s: State) -> np.ndarray:
         values = []
@@ -368,6 +374,6 @@ def flat_difference(a: Pose, b: Pose) -> np.ndarray:
     return np.concatenate([a.G - b.G, dpi], axis=-1).reshape(len(a), -1)
 
 
-def solve_spatial(system: SpatialSystem, t: np.ndarray) -> SpatialSolution:
+def solve_spatial(system: SpatialSystem, t: np.ndarray, reactions: bool = True) -> SpatialSolution:
     """The spatial reference's raw columns of `system` at instants t."""
-    return SpatialSolver(system).solve(t)
+    return SpatialSolver(system).solve(t, reactions)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Protocol, Sequence
 
 from pebble import ProcessExpired, ProcessPool
+from pebble.common.types import CONSTS as PEBBLE
 from pebble.pool.process import WORKERS_NAME
 
 from .defaults import DASK_CONNECT_TIMEOUT
@@ -70,6 +71,10 @@ class LocalExecutor:
         pass
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
+        with _polling(POLL):
+            return self._run(fn, items, on_done)
+
+    def _run(self, fn, items, on_done) -> list[Done]:
         results: list[Done] = []
         pool = ProcessPool(max_workers=self.workers, max_tasks=1, initializer=die_with_parent,
                            initargs=(os.getpid(),))
@@ -94,6 +99,23 @@ class LocalExecutor:
         pool.close()
         pool.join()
         return results
+
+
+#: How often pebble's pool looks at its workers (s): a worker that ended
+#: its one task is replaced only then, so at pebble's own 0.1 s a slot
+#: idled about half of it per task, a sizeable part of a short engine
+#: run (tests/bench/worker_overhead_bench.py measures it).
+POLL = 0.01
+
+
+@contextlib.contextmanager
+def _polling(interval: float):
+    """pebble's period for its pool-managing loop, for one batch."""
+    before, PEBBLE.sleep_unit = PEBBLE.sleep_unit, interval
+    try:
+        yield
+    finally:
+        PEBBLE.sleep_unit = before
 
 
 def _stop_now(pool: ProcessPool) -> None:

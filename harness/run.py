@@ -26,7 +26,7 @@ from mechval.engines.findings import measure_findings
 from mechval.engines.registry import REFERENCE
 from mechval.records.outcome import Outcome
 from mechval.reports.audit import audit_section
-from mechval.reports.build import provenance, summary_markdown, write_report
+from mechval.reports.build import write_report
 from mechval.reports.cost_report import cost_section, write_table
 from mechval.reports.findings import findings_section
 from mechval.reports.stability import stability_section
@@ -177,7 +177,7 @@ def _side_results(plans: list[Plan], engines: list[str], side: list[Done]) -> tu
 def print_summary(run: RunReport) -> int:
     """What `mechval run` prints once the report is written; its exit status
     (0: every comparison passed, 1: one failed)."""
-    print(summary_markdown(run.records, run.scenarios, provenance(), run.references))
+    print((run.folder / "summary.md").read_text(encoding="utf-8"), end="")
     for warning in version_warnings(run.outcomes):
         print(f"warning: {warning}")
     if run.left_out:

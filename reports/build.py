@@ -11,7 +11,7 @@ import platform
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -148,8 +148,10 @@ def reference_method(reference: Signals) -> str:
 
 
 def summary_markdown(records: pd.DataFrame, scenarios: Sequence[Scenario], meta: dict,
-                     references: Mapping[str, Signals] | None = None) -> str:
-    matrix = summary_matrix(records, scenarios)
+                     references: Mapping[str, Signals] | None = None, matrix: dict | None = None) -> str:
+    """summary.md: the matrix (`summary_matrix`, made here unless given),
+    the failures, what was not built and how references were integrated."""
+    matrix = matrix or summary_matrix(records, scenarios)
     lines = [f"# mechval discrepancy summary ({meta['date']}, commit {meta['commit']})", "",
              "Worst ratio error / bound per scenario × engine (≤ 1 passes).", "",
              "| scenario | " + " | ".join(map(md_cell, matrix["columns"])) + " |",
@@ -216,7 +218,7 @@ def _run_groups(scenario: Scenario, records: pd.DataFrame) -> list[dict]:
         engine = group["engine"].iloc[0]
         rows = [dict(verdict=r["verdict"], cells={c: _fmt(r[c]) for c in RECORD_COLUMNS},
                      override=notes.get(engine, {}).get(_bound_class(r["signal"], r["class"]), ""))
-                for _, r in group.iterrows()]
+                for r in group.to_dict("records")]
         groups.append(dict(label=run, engine=engine, anchor=run_anchor(scenario.name, run), verdict=_verdict(group),
                            summary=_cell(group), rows=rows, overrides=list(notes.get(engine, {}).values())))
     return groups
@@ -258,8 +260,9 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
         sections = [_scenario_section(s, references[s.name], [o for o in outcomes if o.task.scenario.name == s.name],
                                       records, palette, (drawings or {}).get(s.name)) for s in scenarios]
         sections.sort(key=lambda section: section["verdict"] != "fail")       # failures first, else as given
+        matrix = summary_matrix(records, scenarios)
         html = env.get_template("report.html.j2").render(
-            meta=meta, matrix=summary_matrix(records, scenarios), scenarios=sections, engine_runs=runs.run_tables(outcomes),
+            meta=meta, matrix=matrix, scenarios=sections, engine_runs=runs.run_tables(outcomes),
             overall_pass=not (records["verdict"] == "fail").any(),
             failures=int(records[records["verdict"] == "fail"].groupby(["scenario", "engine", "setting"]).ngroups),
             engines=list(dict.fromkeys(records["engine"])), verdicts=VERDICTS,
@@ -268,7 +271,8 @@ def write_report(out: Path, scenarios: Sequence[Scenario], references: dict[str,
         (folder / "index.html").write_text(html, encoding="utf-8")
         write_csv(records, folder / "discrepancies.csv")
         runs.write_runs_csv(folder / "runs.csv", outcomes)
-        (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta, references), encoding="utf-8")
+        (folder / "summary.md").write_text(summary_markdown(records, scenarios, meta, references, matrix),
+                                             encoding="utf-8")
         for name, write in (extra_files or {}).items():
             write(folder / name)
 

@@ -309,8 +309,10 @@ def mechanism_figure(mech: Mechanism, times: np.ndarray, instants: int = 4) -> d
 
 def deflated(data: bytes) -> str:
     """Bytes for the page as text: deflated (zlib), base64. report.js
-    inflates them with the browser's DecompressionStream."""
-    return base64.b64encode(zlib.compress(data, 9)).decode("ascii")
+    inflates them with the browser's DecompressionStream. zlib's default
+    level: its highest takes many times as long on the signal streams for
+    under a percent less (tests/bench/run_bench.py prints the page's size)."""
+    return base64.b64encode(zlib.compress(data)).decode("ascii")
 
 
 @lru_cache(maxsize=1)

@@ -2,7 +2,8 @@
 isolation: `mechval.harness.executors.LocalExecutor`), against workers that
 run task after task: the runs' own CPU time, the workers' CPU time in all
 (forks, start-up, and the runs) and the parent's, in CPU time so that it
-holds on a shared machine.
+holds on a shared machine; and the slots' idle time per run, with pebble's
+pool polled at `executors.POLL` and at pebble's own 0.1 s.
 
     .venv/bin/python tests/bench/worker_overhead_bench.py [SCENARIO...] [--workers N]
 
@@ -15,6 +16,7 @@ to the run that did it.
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import sys
 import time
@@ -33,14 +35,19 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def measure(tasks, workers: int, persistent: bool) -> tuple[float, float, float]:
-    """The runs' CPU time, the workers' and the parent's (s)."""
+def measure(tasks, workers: int, persistent: bool, poll: float) -> tuple[float, float, float, float]:
+    """The runs' CPU time, the workers' and the parent's (s), and each
+    run's share of the slots' idle time (workers × wall − the runs' walls)
+    in ms: on a loaded machine the runs' walls stretch too, so it stays
+    meaningful where the wall time is not."""
     pool = executors.ProcessPool
     fresh_or_not = (lambda **kw: pool(**{**kw, "max_tasks": 0})) if persistent else pool
-    children, parent = _children_cpu(), time.process_time()
-    with mock.patch.object(executors, "ProcessPool", fresh_or_not):
+    children, parent, wall = _children_cpu(), time.process_time(), time.perf_counter()
+    with mock.patch.object(executors, "ProcessPool", fresh_or_not), mock.patch.object(executors, "POLL", poll):
         outcomes = run_tasks(tasks, workers=workers, timeout=600.0)
-    return sum(o.cpu_time for o in outcomes), _children_cpu() - children, time.process_time() - parent
+    idle = (workers * (time.perf_counter() - wall) - sum(o.wall_time for o in outcomes)) / len(outcomes)
+    return (sum(o.cpu_time for o in outcomes), _children_cpu() - children, time.process_time() - parent,
+            1000 * idle)
 
 
 def main() -> None:
@@ -52,11 +59,14 @@ def main() -> None:
     tasks = tasks_for([prepare(load_scenario(s), engines) for s in args.scenarios], engines)
     import_engines(engines)         # as `mechval run` does before its pool forks
     print(f"{len(tasks)} engine runs on {args.workers} workers")
-    print(f"{'workers':<22} {'runs CPU [s]':>12} {'workers CPU [s]':>15} {'parent CPU [s]':>14}")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print(f"{'workers':<34} {'runs CPU [s]':>12} {'workers CPU [s]':>15} {'parent CPU [s]':>14} "
+          f"{'idle per run [ms]':>17}")
     for _ in range(2):
-        for persistent in (False, True):
-            runs, workers, parent = measure(tasks, args.workers, persistent)
-            print(f"{'persistent' if persistent else 'fresh per run':<22} {runs:>12.2f} {workers:>15.2f} {parent:>14.2f}")
+        for persistent, poll in ((False, executors.POLL), (False, 0.1), (True, executors.POLL)):
+            runs, workers, parent, idle = measure(tasks, args.workers, persistent, poll)
+            name = f"{'persistent' if persistent else 'fresh per run'}, pool polled every {poll:g} s"
+            print(f"{name:<34} {runs:>12.2f} {workers:>15.2f} {parent:>14.2f} {idle:>17.0f}")
 
 
 if __name__ == "__main__":

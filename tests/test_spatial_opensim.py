@@ -409,11 +409,18 @@ def reversed_hooke() -> SpatialSystem:
     return dataclasses.replace(shafts, joints=(shafts.joints[0], reversed_joint(shafts.joints[1]), shafts.joints[2]))
 
 
+def damped_ball() -> SpatialSystem:
+    """The torque crank with damping on its ball joint: the scene's damper
+    along zi meets no slide there, none is built, and the audit says so."""
+    system = torque_crank()
+    return dataclasses.replace(system, joints=(system.joints[0], dataclasses.replace(system.joints[1], damping=0.1)))
+
+
 BUILD_SETTINGS = {"integrator": "RungeKuttaMerson", "accuracy": 1e-9, "constraint_tolerance": 1e-10, "max_step": 0.1}
 AUDITED = {"RSSR": lambda: RSSR().system, "delta": lambda: Delta().system, "T-handle": lambda: with_start(TumblingBody()),
            "Hooke reversed": reversed_hooke, "torque crank": torque_crank, "driven slide": driven_slide,
            "cylindrical": lambda: sliding_body("cylindrical", (1.0, 1.0, 1.0))[0], "welded loop": welded_loop,
-           "A05": lambda: FlyballGovernor().system}
+           "A05": lambda: FlyballGovernor().system, "damped ball": damped_ball}
 
 
 @pytest.mark.parametrize("scene", list(AUDITED))
@@ -429,6 +436,8 @@ def test_model_audit_reads_the_scene_back(scene):
     table = OpensimAdapter().audit(spatial_mechanism(system), t, BUILD_SETTINGS)
     assert failures(table).empty, failures(table).to_string()
     assert (table["verdict"] == "match").sum() >= len(system.bodies) * 10
+    if scene == "damped ball":
+        assert table.set_index(["item", "quantity"]).loc[("joint S", "damping"), "verdict"] == "note"
 
 
 def test_model_audit_sees_a_difference():

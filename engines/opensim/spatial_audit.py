@@ -46,7 +46,7 @@ from mechval.records.audit import AUDIT_RTOL, SCENE, Reading, audit, body_item, 
 from mechval.records.spatial_audit import INERTIA, axis_columns, expected_spatial, joint_sides
 from mechval.reference.spatial.system import SpatialJoint, SpatialSystem
 
-from mechval.engines.opensim.spatial_model import SpatialModel
+from mechval.engines.opensim.spatial_model import DAMPED, SpatialModel
 from mechval.engines.opensim.spatial_run import prepare, start_world
 from mechval.engines.opensim.model import quiet
 
@@ -222,8 +222,15 @@ def _dampers(model, built: SpatialModel, system: SpatialSystem) -> list[Reading]
             found[joint] += float(damper.getViscosity())
         else:
             stray.append(f"{damper.getName()} on {damper.get_coordinate()}")
-    out = [Reading(joint_item(name), "damping", value, "SpringGeneralizedForce on its coordinate" if value else "")
-           for name, value in found.items()]
+    out = []
+    for joint in system.joints:
+        value = found[joint.name]
+        if not value and joint.damping and joint.kind not in DAMPED:
+            out.append(Reading(joint_item(joint.name), "damping", "none built",
+                               f"the scene's damper along zi meets no slide at a {joint.kind} joint: no effect", "note"))
+        else:
+            out.append(Reading(joint_item(joint.name), "damping", value,
+                               "SpringGeneralizedForce on its coordinate" if value else ""))
     return out + ([Reading(SCENE, "other dampers", "; ".join(stray))] if stray else [])
 
 

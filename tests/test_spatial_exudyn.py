@@ -191,6 +191,21 @@ def test_model_audit_sees_a_difference():
     assert list(zip(wrong["item"], wrong["quantity"])) == [("body lower", "com y"), ("joint B", "damping")]
 
 
+def test_model_audit_catches_an_unturned_universal_frame(monkeypatch):
+    """Built with marker 0's frame not turned (`TO_Y`: J0's y must be zi),
+    the universal joint's pin on body_i differs: the audit reads the axis
+    Exudyn leaves free, not the scene's."""
+    from mechval.engines.exudyn import spatial_model
+    from mechval.engines.exudyn.spatial import prepare_spatial
+    from mechval.engines.exudyn.spatial_audit import expected_spatial, read_spatial
+    from mechval.records.audit import audit, failures
+    monkeypatch.setattr(spatial_model, "TO_Y", np.eye(3))
+    system, t = CASES["universal"]()
+    model = prepare_spatial(system, t[:3], build_settings(system))[0]
+    wrong = failures(audit(expected_spatial(system), read_spatial(model, system)))
+    assert set(wrong["quantity"]) and set(wrong["quantity"]) <= {f"axis i z{c}" for c in "xyz"}
+
+
 def test_get_marker_names_a_rotation_coordinate_marker_translation():
     """Finding (Exudyn 1.13.6): `GetMarker` of a
     MarkerBodiesRelativeRotationCoordinate gives markerType

@@ -457,5 +457,19 @@ def test_model_audit_sees_a_difference():
     assert list(zip(wrong["item"], wrong["quantity"])) == [("body bob", "com y"), ("spring spring", "stiffness")]
 
 
+def test_model_audit_catches_an_unturned_slider_frame(monkeypatch):
+    """Built with the slide's frames not turned (`X_FROM_Z`: OpenSim slides
+    along x, which must be zi), the prismatic joint's axes differ."""
+    from mechval.engines.opensim import spatial_model
+    from mechval.engines.opensim.spatial_audit import expected_spatial, read_spatial
+    from mechval.engines.opensim.spatial_run import prepare, start_world
+    from mechval.records.audit import audit, failures
+    monkeypatch.setattr(spatial_model, "X_FROM_Z", np.eye(3))
+    system, t = driven_slide(), np.linspace(0.0, 0.1, 3)
+    built, _ = prepare(system, start_world(system, t), 0.0, BUILD_SETTINGS, t)
+    wrong = failures(audit(expected_spatial(system), read_spatial(built, system)))
+    assert set(zip(wrong["item"], wrong["quantity"])) == {("joint P", f"axis {s} z{c}") for s in "ij" for c in "xyz"}
+
+
 class TestSpatialContract(SpatialContract):
     engine = "opensim"

@@ -477,5 +477,17 @@ def test_model_audit_sees_a_difference():
     assert list(zip(wrong["item"], wrong["quantity"])) == [(f"pinocchio joint {index}", "inertia")]
 
 
+def test_model_audit_catches_an_unturned_universal_frame(monkeypatch):
+    """Built with the child's frame not turned (`UNIVERSAL_TURN`: its pin
+    zj must be Pinocchio's axis2, x), Hooke's cross differs on body_j."""
+    from mechval.engines.pinocchio import spatial_model
+    from mechval.engines.pinocchio.spatial_audit import expected_spatial, read_spatial
+    from mechval.records.audit import audit, failures
+    monkeypatch.setattr(spatial_model, "UNIVERSAL_TURN", np.eye(3))
+    system = hooke()
+    wrong = failures(audit(expected_spatial(system), read_spatial(spatial_model.build_spatial_model(system), system)))
+    assert set(wrong["quantity"]) and set(wrong["quantity"]) <= {f"axis j z{c}" for c in "xyz"}
+
+
 class TestSpatialContract(SpatialContract):
     engine = "pinocchio"

@@ -200,20 +200,25 @@ def test_fixed_and_universal_joints_meet_the_reference():
     check(hooke(), np.linspace(0.0, 3.0, 61))
 
 
-def test_a_weld_that_closes_a_loop_meets_the_reference():
+def welded_loop() -> SpatialSystem:
     """The plate welded to the driven crank and held on the crank's axis
-    by a cylindrical joint to the ground: the weld closes the loop (a
-    WeldConstraint, four redundant rows), compared by body resultants."""
+    by a cylindrical joint to the ground."""
     axis = unit((0.3, 0.1, 1.0))
     frame = frame_from_axis(axis)
     crank = SpatialBody("crank", 2.0, (0.1, 0.0, 0.05), inertia(50))
     plate = SpatialBody("plate", 1.0, (0.3, 0.1, -0.1), inertia(51))
     on_axis = tuple(0.4 * axis)
-    check(SpatialSystem("welded loop", (crank, plate),
-                        (revolute("O", GROUND, "crank", (0.0, 0.0, 0.0), axis),
-                         SpatialJoint("W", "fixed", "crank", "plate", (0.25, 0.0, 0.0), (0.25, 0.0, 0.0)),
-                         SpatialJoint("C", "cylindrical", GROUND, "plate", on_axis, on_axis, frame, frame)),
-                        (SpatialDrive("O", DriveLaw(0.2, 3.0, 1.5)),), GRAVITY), np.linspace(0.0, 2.0, 41))
+    return SpatialSystem("welded loop", (crank, plate),
+                         (revolute("O", GROUND, "crank", (0.0, 0.0, 0.0), axis),
+                          SpatialJoint("W", "fixed", "crank", "plate", (0.25, 0.0, 0.0), (0.25, 0.0, 0.0)),
+                          SpatialJoint("C", "cylindrical", GROUND, "plate", on_axis, on_axis, frame, frame)),
+                         (SpatialDrive("O", DriveLaw(0.2, 3.0, 1.5)),), GRAVITY)
+
+
+def test_a_weld_that_closes_a_loop_meets_the_reference():
+    """The weld closes the loop (a WeldConstraint, four redundant rows),
+    compared by body resultants."""
+    check(welded_loop(), np.linspace(0.0, 2.0, 41))
 
 
 def hooke() -> SpatialSystem:
@@ -397,6 +402,73 @@ def test_reversed_slide_and_universal_joints_meet_the_reference():
     shafts = hooke()
     check(dataclasses.replace(shafts, joints=(shafts.joints[0], reversed_joint(shafts.joints[1]), shafts.joints[2])),
           np.linspace(0.0, 3.0, 61))
+
+
+def reversed_hooke() -> SpatialSystem:
+    shafts = hooke()
+    return dataclasses.replace(shafts, joints=(shafts.joints[0], reversed_joint(shafts.joints[1]), shafts.joints[2]))
+
+
+def damped_ball() -> SpatialSystem:
+    """The torque crank with damping on its ball joint: the scene's damper
+    along zi meets no slide there, none is built, and the audit says so."""
+    system = torque_crank()
+    return dataclasses.replace(system, joints=(system.joints[0], dataclasses.replace(system.joints[1], damping=0.1)))
+
+
+BUILD_SETTINGS = {"integrator": "RungeKuttaMerson", "accuracy": 1e-9, "constraint_tolerance": 1e-10, "max_step": 0.1}
+AUDITED = {"RSSR": lambda: RSSR().system, "delta": lambda: Delta().system, "T-handle": lambda: with_start(TumblingBody()),
+           "Hooke reversed": reversed_hooke, "torque crank": torque_crank, "driven slide": driven_slide,
+           "cylindrical": lambda: sliding_body("cylindrical", (1.0, 1.0, 1.0))[0], "welded loop": welded_loop,
+           "A05": lambda: FlyballGovernor().system, "damped ball": damped_ball}
+
+
+@pytest.mark.parametrize("scene", list(AUDITED))
+def test_model_audit_reads_the_scene_back(scene):
+    """Masses, centres of mass, inertia tensors, joint kinds, bodies,
+    points and axes (OpenSim's own axis of each joint class in its offset
+    frames; closures from their constraints' locations and frames),
+    dampers, springs (parsed from their expressions) and gravity read back
+    from the built model equal the scene's to 1e-12, through the adapter."""
+    from mechval.records.audit import failures
+    system = AUDITED[scene]()
+    t = np.linspace(0.0, 0.002, 3)          # the start is what is audited; the integrator's settings build nothing
+    table = OpensimAdapter().audit(spatial_mechanism(system), t, BUILD_SETTINGS)
+    assert failures(table).empty, failures(table).to_string()
+    assert (table["verdict"] == "match").sum() >= len(system.bodies) * 10
+    if scene == "damped ball":
+        assert table.set_index(["item", "quantity"]).loc[("joint S", "damping"), "verdict"] == "note"
+
+
+def test_model_audit_sees_a_difference():
+    """A model built for one scene audited against another whose body has
+    its centre of mass moved 1 mm and whose spring is stiffer: those rows,
+    and only they, differ."""
+    from mechval.engines.opensim.spatial_audit import expected_spatial, read_spatial
+    from mechval.engines.opensim.spatial_run import prepare, start_world
+    from mechval.records.audit import audit, failures
+    system = torque_crank()
+    moved = dataclasses.replace(system.bodies[1], com=tuple(np.add(system.bodies[1].com, (0.0, 0.001, 0.0))))
+    stiffer = dataclasses.replace(system.springs[0], stiffness=41.0)
+    other = dataclasses.replace(system, bodies=(system.bodies[0], moved), springs=(stiffer,))
+    t = np.linspace(0.0, 0.1, 3)
+    built, _ = prepare(system, start_world(system, t), 0.0, BUILD_SETTINGS, t)
+    wrong = failures(audit(expected_spatial(other), read_spatial(built, system)))
+    assert list(zip(wrong["item"], wrong["quantity"])) == [("body bob", "com y"), ("spring spring", "stiffness")]
+
+
+def test_model_audit_catches_an_unturned_slider_frame(monkeypatch):
+    """Built with the slide's frames not turned (`X_FROM_Z`: OpenSim slides
+    along x, which must be zi), the prismatic joint's axes differ."""
+    from mechval.engines.opensim import spatial_model
+    from mechval.engines.opensim.spatial_audit import expected_spatial, read_spatial
+    from mechval.engines.opensim.spatial_run import prepare, start_world
+    from mechval.records.audit import audit, failures
+    monkeypatch.setattr(spatial_model, "X_FROM_Z", np.eye(3))
+    system, t = driven_slide(), np.linspace(0.0, 0.1, 3)
+    built, _ = prepare(system, start_world(system, t), 0.0, BUILD_SETTINGS, t)
+    wrong = failures(audit(expected_spatial(system), read_spatial(built, system)))
+    assert set(zip(wrong["item"], wrong["quantity"])) == {("joint P", f"axis {s} z{c}") for s in "ij" for c in "xyz"}
 
 
 class TestSpatialContract(SpatialContract):

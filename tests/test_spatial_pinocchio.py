@@ -33,6 +33,7 @@ from spatial_benchmarks import Bricard, FlyballGovernor
 from spatial_mechanisms import (HookesJoint, GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia,
                                 revolute, unit)
 from test_spatial_joint_kinds import sliding_body
+from spatial_exudyn_cases import torque_pendulum, welded_crank
 
 try:
     import pinocchio  # noqa: F401
@@ -408,6 +409,84 @@ def test_a_drive_that_closes_a_loop_of_drives_is_refused():
     with pytest.raises(Unrepresentable) as refused:
         run_spatial(system, np.linspace(0.0, 0.1, 3), settings)
     assert refused.value.key == "drive.driveD"
+
+
+def flipped_crank() -> SpatialSystem:
+    """A driven crank written crank → ground with zj against zi (the
+    adapter turns the child's frame)."""
+    axis = unit((0.3, 0.1, 1.0))
+    joint = SpatialJoint("O", "revolute", "crank", GROUND, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                         frame_from_axis(-axis, (1.0, 0.0, 0.0)), frame_from_axis(axis, (1.0, 0.0, 0.0)))
+    return SpatialSystem("crank", (SpatialBody("crank", 2.0, (0.1, 0.0, 0.05), inertia(50)),), (joint,),
+                         (SpatialDrive("O", DriveLaw(0.2, 3.0, 1.5)),), GRAVITY)
+
+
+def fourbar_cut_flipped() -> SpatialSystem:
+    """The spherical four-bar with its cut D's zj against zi."""
+    m = SphericalFourBar()
+    joints = tuple(dataclasses.replace(j, frame_j=frame_from_axis(-m.w)) if j.name == "D" else j
+                   for j in m.system.joints)
+    return dataclasses.replace(m.system, joints=joints)
+
+
+AUDITED = {"RSSR": lambda: RSSR().system, "delta": lambda: Delta().system,
+           "T-handle": lambda: with_velocities(TumblingBody().system, TumblingBody().velocities),
+           "Hooke": hooke, "A05": lambda: FlyballGovernor().system,
+           "cylindrical": lambda: sliding_body("cylindrical", (0.3, -0.2, 1.0))[0],
+           "fixed": welded_crank, "torque law, spring, load, damper": torque_pendulum,
+           "flipped revolute": flipped_crank, "flipped cut": fourbar_cut_flipped, "carrier": rsup}
+
+
+@pytest.mark.parametrize("scene", list(AUDITED))
+def test_model_audit_reads_the_scene_back(scene, monkeypatch):
+    """Masses, centres of mass, inertia tensors (each body's frame's),
+    joint kinds, bodies, points and axes (tree joints, point and weld
+    constraints, a carrier's joint, flipped frames turned back) and gravity
+    read back from the built model equal the scene's to 1e-12 (dampers
+    and springs "as set": the adapter applies them), through the adapter."""
+    from mechval.engines.pinocchio import spatial_model
+    from mechval.records.audit import failures
+    if scene == "carrier":      # the loop's cut on the prismatic joint (as test_a_loop_closed_at_a_prismatic...)
+        monkeypatch.setitem(spatial_model.TREE_RANK, "spherical", 1)
+    system = AUDITED[scene]()
+    t = np.linspace(0.0, 0.002, 3)         # the model takes no settings
+    table = PinocchioAdapter().audit(spatial_mechanism(system), t, {})
+    assert failures(table).empty, failures(table).to_string()
+    assert (table["verdict"] == "match").sum() >= len(system.bodies) * 10
+    if scene == "carrier":
+        assert "JointModelPZ" in table.set_index(["item", "quantity"]).loc[("joint G", "kind"), "note"]
+
+
+def test_model_audit_sees_a_difference():
+    """A model built for one scene audited against another whose body has
+    its centre of mass moved 1 mm: that row, and only it, differs; and a
+    joint's inertia that is not its frames' sum is listed."""
+    from mechval.engines.pinocchio.spatial_audit import expected_spatial, read_spatial
+    from mechval.engines.pinocchio.spatial_model import build_spatial_model
+    from mechval.records.audit import audit, failures
+    system = RSSR().system
+    moved = dataclasses.replace(system.bodies[1], com=tuple(np.add(system.bodies[1].com, (0.0, 0.001, 0.0))))
+    other = dataclasses.replace(system, bodies=(system.bodies[0], moved, system.bodies[2]))
+    sm = build_spatial_model(system)
+    wrong = failures(audit(expected_spatial(other), read_spatial(sm, system)))
+    assert list(zip(wrong["item"], wrong["quantity"])) == [("body coupler", "com y")]
+    index = sm.joint_of["coupler"]
+    held = sm.model.inertias[index]
+    sm.model.inertias[index] = pinocchio.Inertia(held.mass * 1.001, held.lever, held.inertia)
+    wrong = failures(audit(expected_spatial(system), read_spatial(sm, system)))
+    assert list(zip(wrong["item"], wrong["quantity"])) == [(f"pinocchio joint {index}", "inertia")]
+
+
+def test_model_audit_catches_an_unturned_universal_frame(monkeypatch):
+    """Built with the child's frame not turned (`UNIVERSAL_TURN`: its pin
+    zj must be Pinocchio's axis2, x), Hooke's cross differs on body_j."""
+    from mechval.engines.pinocchio import spatial_model
+    from mechval.engines.pinocchio.spatial_audit import expected_spatial, read_spatial
+    from mechval.records.audit import audit, failures
+    monkeypatch.setattr(spatial_model, "UNIVERSAL_TURN", np.eye(3))
+    system = hooke()
+    wrong = failures(audit(expected_spatial(system), read_spatial(spatial_model.build_spatial_model(system), system)))
+    assert set(wrong["quantity"]) and set(wrong["quantity"]) <= {f"axis j z{c}" for c in "xyz"}
 
 
 class TestSpatialContract(SpatialContract):

@@ -199,7 +199,8 @@ class ExudynAdapter(EngineAdapter):
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         if mechanism.spatial is not None:
-            raise NotImplementedError("exudyn: no model audit of spatial scenes yet (it reads planar models only)")
+            from mechval.engines.exudyn.spatial_audit import audit_spatial
+            return audit_spatial(mechanism.spatial, times, settings)
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:

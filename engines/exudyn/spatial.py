@@ -80,20 +80,8 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
     if settings["solver"] not in SOLVERS:
         raise ValueError(f"exudyn: solver must be one of {tuple(SOLVERS)}, got {settings['solver']!r}")
     dt = float(settings["timestep"])
-    pre_roll = int(settings["pre_roll_steps"])
-    if settings["solver"] == "index3" and pre_roll:
-        pre_roll = max(pre_roll, index3_transient_steps(float(settings["spectral_radius"])))
     clock = time.perf_counter()
-    while True:     # halved until the reference closes the loop at the pre-roll's start
-        t0 = float(times[0]) - pre_roll * dt
-        try:
-            start = start_frame(system, t0, float(times[1]))
-            break
-        except (ValueError, Unrepresentable):
-            if pre_roll == 0:
-                raise
-            pre_roll //= 2
-    model = build_spatial(system, start, t0)
+    model, t0, pre_roll = prepare_spatial(system, times, settings)
     dof = model.mbs.ComputeSystemDegreeOfFreedom()
     redundant = int(dof["redundantConstraints"])
     if redundant and settings["solver"] == "index2":
@@ -121,6 +109,26 @@ def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str,
             "linear_solver": "EigenDense full pivot" if redundant else "EXUdense",
             "build_time_s": build_time, "wall_time_s": wall_time}
     return RawRun(frame, missing, RunInfo.of(info))
+
+
+def prepare_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str, Any]
+                    ) -> tuple[SpatialModel, float, int]:
+    """The model a run starts from, the solver's start t0 and the pre-roll
+    steps used (the run and the model audit build the same)."""
+    dt = float(settings["timestep"])
+    pre_roll = int(settings["pre_roll_steps"])
+    if settings["solver"] == "index3" and pre_roll:
+        pre_roll = max(pre_roll, index3_transient_steps(float(settings["spectral_radius"])))
+    while True:     # halved until the reference closes the loop at the pre-roll's start
+        t0 = float(times[0]) - pre_roll * dt
+        try:
+            start = start_frame(system, t0, float(times[1]))
+            break
+        except (ValueError, Unrepresentable):
+            if pre_roll == 0:
+                raise
+            pre_roll //= 2
+    return build_spatial(system, start, t0), t0, pre_roll
 
 
 def read_frame(system: SpatialSystem, model: SpatialModel, rows: np.ndarray, times: np.ndarray,

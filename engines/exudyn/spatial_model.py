@@ -80,6 +80,8 @@ class SpatialModel:
     #: Object numbers of the bodies (and the ground) and of the joints.
     objects: dict[str, int] = field(default_factory=dict)
     joint_objects: dict[str, int] = field(default_factory=dict)
+    #: Per body: its gravity load m·g (none without gravity).
+    gravity_loads: dict[str, int] = field(default_factory=dict)
 
     @property
     def clock_sensor(self) -> int:
@@ -135,7 +137,8 @@ def build_spatial(system: SpatialSystem, start: pd.DataFrame, t0: float) -> Spat
                                                storeInternal=True, writeToFile=False)) for name in NODE_OUTPUTS}
         if any(system.gravity):
             com = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=number, localPosition=list(map(float, body.com))))
-            mbs.AddLoad(eii.LoadForceVector(markerNumber=com, loadVector=[body.mass * g for g in system.gravity]))
+            model.gravity_loads[body.name] = mbs.AddLoad(eii.LoadForceVector(
+                markerNumber=com, loadVector=[body.mass * g for g in system.gravity]))
 
     for joint in system.joints:
         _add_joint(model, joint, objects)
@@ -250,37 +253,3 @@ def _add_torque_law(mbs: exu.MainSystem, joint: SpatialJoint, law, objects: dict
         sensors.append((mbs.AddSensor(eii.SensorLoad(loadNumber=load, storeInternal=True, writeToFile=False)),
                         sign, axis))
     return sensors[0]
-
-
-
-def read_back(model: SpatialModel) -> dict[str, dict[str, object]]:
-    """What the compiled model holds, in the scene's terms: per body its
-    mass, centre of mass and inertia tensor about it (body axes; Steiner
-    back from Exudyn's tensor about the node); per joint its kind (from
-    `constrainedAxes`), bodies, points and joint frames (the markers'
-    frames; the universal's frame_i with `TO_Y` undone)."""
-    mbs, kinds = model.mbs, {axes: kind for kind, axes in CONSTRAINED_AXES.items()}
-    bodies = {int(number): name for name, number in model.objects.items()}
-    out: dict[str, dict[str, object]] = {}
-    for name, number in model.objects.items():
-        if name == GROUND:
-            continue
-        item = mbs.GetObject(number)
-        mass, c = float(item["mass"]), np.asarray(item["centerOfMass"], dtype=float)
-        xx, yy, zz, yz, xz, xy = np.asarray(item["inertia"], dtype=float)
-        about_node = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        out[name] = {"mass": mass, "com": c, "inertia": about_node - mass * ((c @ c) * np.eye(3) - np.outer(c, c))}
-    for name, number in model.joint_objects.items():
-        item = mbs.GetObject(number)
-        kind = kinds[tuple(int(a) for a in item["constrainedAxes"])]
-        ends = []
-        for marker in item["markerNumbers"]:
-            m = mbs.GetMarker(marker)
-            ht = np.asarray(m["localHT"], dtype=float)
-            ends.append((bodies[int(m["bodyNumber"])], ht[:3, 3], ht[:3, :3]))
-        (body_i, point_i, frame_i), (body_j, point_j, frame_j) = ends
-        if kind == "universal":
-            frame_i = frame_i @ TO_Y.T
-        out[name] = {"kind": kind, "body_i": body_i, "body_j": body_j, "point_i": point_i, "point_j": point_j,
-                     "frame_i": frame_i, "frame_j": frame_j}
-    return out

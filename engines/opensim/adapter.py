@@ -125,9 +125,8 @@ class OpensimAdapter(EngineAdapter):
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         if mechanism.spatial is not None:
-            # mechval.records.audit's expectations are planar; the spatial
-            # model's inertia and axes are read back by tests/test_spatial_opensim.py
-            raise NotImplementedError("opensim: no model audit of a spatial scene (no spatial expectations yet)")
+            from mechval.engines.opensim.spatial_audit import audit_spatial
+            return audit_spatial(mechanism.spatial, times, settings)
         from mechval.engines.opensim.audit import audit_model
         return audit_model(mechanism, times, settings)
 

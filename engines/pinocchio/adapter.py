@@ -129,7 +129,7 @@ class PinocchioAdapter(EngineAdapter):
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         if mechanism.spatial is not None:
-            raise NotImplementedError(f"{self.name}: no model audit of a spatial scene yet "
-                                      "(audit.py reads planar models)")
+            from mechval.engines.pinocchio.spatial_audit import audit_spatial
+            return audit_spatial(mechanism.spatial, times, settings)
         from mechval.engines.pinocchio.audit import audit_model
         return audit_model(mechanism, times, settings)

@@ -238,9 +238,8 @@ def build_spatial_model(system: SpatialSystem) -> SpatialModel:
             index = model.addJoint(sm.joint_of[parent], native_joint(joint.kind), sm.shift[parent] * tj.side(parent),
                                    f"carrier{k}")
             carriers[joint.name] = dataclasses.replace(tj, index=index)
-            model.appendBodyToJoint(index, carrier_inertia(system), pin.SE3.Identity())
-            sm.carrier_frames[model.addFrame(pin.Frame(child, index, pin.SE3.Identity(), pin.FrameType.OP_FRAME))] = \
-                carriers[joint.name]
+            sm.carrier_frames[model.addFrame(pin.Frame(child, index, pin.SE3.Identity(), pin.FrameType.OP_FRAME,
+                                                       carrier_inertia(system)))] = carriers[joint.name]
             continue
         if role == "free":
             index = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), f"free{k}")
@@ -257,9 +256,9 @@ def build_spatial_model(system: SpatialSystem) -> SpatialModel:
             tree.append(dataclasses.replace(tj, index=0 if joint.kind == "fixed" else index))
         body = system.body(child)
         inertia = pin.Inertia(float(body.mass), np.asarray(body.com, float), np.asarray(body.inertia, float))
-        model.appendBodyToJoint(index, inertia, shift)
+        # the body's inertia in its own frame, added to its joint's (`append_inertia`): the audit reads it per body
+        sm.frame_of[child] = model.addFrame(pin.Frame(f"body{k}", index, shift, pin.FrameType.OP_FRAME, inertia))
         sm.joint_of[child], sm.shift[child] = index, shift
-        sm.frame_of[child] = model.addFrame(pin.Frame(f"body{k}", index, shift, pin.FrameType.OP_FRAME))
     model.gravity = pin.Motion(np.asarray(system.gravity, float), np.zeros(3))
     sm.tree = tuple(tree)
     for b in system.bodies:

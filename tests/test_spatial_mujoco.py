@@ -406,13 +406,8 @@ def test_planar_builtin_as_a_spatial_twin(name):
         assert err <= DEFAULT_TOLERANCE[cls], (cls, err, measured)
 
 
-def spring_pendulum() -> SpatialSystem:
-    from test_spatial_drake import spring_pendulum as scene
-    return scene()
-
-
 AUDITED = {"RSSR": lambda: RSSR().system, "delta": lambda: Delta().system, "Bennett": lambda: Bennett().system,
-           "T-handle": lambda: with_velocities(TumblingBody()), "Hooke": hooke, "spring pendulum": spring_pendulum,
+           "T-handle": lambda: with_velocities(TumblingBody()), "Hooke": hooke,
            "A05": lambda: FlyballGovernor().system, "forced arm": forced_arm, "crank, plate, slider": crank_plate_slider,
            "reversed": lambda: reversed_rssr(), "cylindrical": lambda: sliding_body("cylindrical", (0.3, -0.2, 1.0))[0],
            "planar": lambda: sliding_body("planar", (0.2, -0.3, 1.0))[0]}

@@ -21,6 +21,7 @@ from mechval.model.drive import DriveLaw
 from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
+from mechval.scenarios.loader import load, spatial_builtin_names
 from mechval.reference.spatial.resultants import spatial_resultants
 from mechval.reference.spatial.rotation import frame_from_axis
 from mechval.testing import SpatialContract
@@ -30,6 +31,7 @@ from spatial_benchmarks import Bricard, FlyballGovernor
 from spatial_mechanisms import HookesJoint, GRAVITY, RSSR, Bennett, Delta, HeavyTop, SphericalFourBar, TumblingBody, inertia, \
     revolute, unit
 from test_spatial_joint_kinds import sliding_body
+from test_spatial_pybullet import driven_slide
 
 try:
     import mujoco  # noqa: F401
@@ -410,7 +412,7 @@ AUDITED = {"RSSR": lambda: RSSR().system, "delta": lambda: Delta().system, "Benn
            "T-handle": lambda: with_velocities(TumblingBody()), "Hooke": hooke,
            "A05": lambda: FlyballGovernor().system, "forced arm": forced_arm, "crank, plate, slider": crank_plate_slider,
            "reversed": lambda: reversed_rssr(), "cylindrical": lambda: sliding_body("cylindrical", (0.3, -0.2, 1.0))[0],
-           "planar": lambda: sliding_body("planar", (0.2, -0.3, 1.0))[0]}
+           "planar": lambda: sliding_body("planar", (0.2, -0.3, 1.0))[0], "driven slide": driven_slide}
 
 
 def reversed_rssr() -> SpatialSystem:
@@ -470,3 +472,17 @@ def test_model_audit_sees_a_difference():
     wrong = failures(audit(expected_spatial(other), read_spatial(model)))
     assert changed and set(changed) <= {("joint C", f"axis i z{c}") for c in "xyz"}
     assert list(zip(wrong["item"], wrong["quantity"])) == changed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", spatial_builtin_names())
+def test_spatial_builtin_models_are_the_scene(name):
+    """Every spatial built-in through the harness's audit at its default
+    settings (as `mechval audit spatial/NAME --engine mujoco`): no row
+    differs or is missing, every deviation within the audit's 1e-12."""
+    from mechval.harness.audit_run import audit_scenario
+    from mechval.records.audit import AUDIT_RTOL, failures, format_audit
+    result = audit_scenario(load(name), "mujoco")
+    assert result.table is not None, result.error
+    assert result.ok, "\n" + format_audit(failures(result.table))
+    assert (result.table["deviation"].dropna() <= AUDIT_RTOL).all()

@@ -18,6 +18,7 @@ from mechval.model.drive import DriveLaw
 from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
+from mechval.scenarios.loader import load, spatial_builtin_names
 from mechval.reference.spatial.rotation import frame_from_axis
 from mechval.testing import SpatialContract
 from mechval.reference.spatial.system import BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem, Spring
@@ -364,3 +365,17 @@ def test_model_audit_sees_a_difference(adapter):
     wrong = failures(audit(expected_spatial(other), readings))
     assert changed and set(changed) <= {("joint C", f"axis i z{c}") for c in "xyz"}
     assert list(zip(wrong["item"], wrong["quantity"])) == changed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", spatial_builtin_names())
+def test_spatial_builtin_models_are_the_scene(name):
+    """Every spatial built-in through the harness's audit at its default
+    settings (as `mechval audit spatial/NAME --engine pybullet`): no row
+    differs or is missing, every deviation within the audit's 1e-12."""
+    from mechval.harness.audit_run import audit_scenario
+    from mechval.records.audit import AUDIT_RTOL, failures, format_audit
+    result = audit_scenario(load(name), "pybullet")
+    assert result.table is not None, result.error
+    assert result.ok, "\n" + format_audit(failures(result.table))
+    assert (result.table["deviation"].dropna() <= AUDIT_RTOL).all()

@@ -486,3 +486,18 @@ def test_spatial_builtin_models_are_the_scene(name):
     assert result.table is not None, result.error
     assert result.ok, "\n" + format_audit(failures(result.table))
     assert (result.table["deviation"].dropna() <= AUDIT_RTOL).all()
+
+
+def test_model_audit_names_an_element_the_scene_lacks():
+    """The forced arm's model read as if its scene had no torque law: the
+    actuator is an element nothing in the scene accounts for, one row that
+    differs."""
+    from mechval.engines.mujoco.spatial_audit import Reader, built, expected_spatial
+    from mechval.records.audit import audit, failures
+    system = forced_arm()
+    t = np.linspace(0.0, 0.002, 3)
+    reader = Reader(built(system, t, audit_settings(system, t)))
+    reader.system = dataclasses.replace(system, torques=())
+    wrong = failures(audit(expected_spatial(reader.system), reader.readings()))
+    assert list(zip(wrong["item"], wrong["quantity"], wrong["actual"])) == [("scene", "other elements",
+                                                                             "actuator 'torque0'")]

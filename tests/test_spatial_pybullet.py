@@ -379,3 +379,24 @@ def test_spatial_builtin_models_are_the_scene(name):
     assert result.table is not None, result.error
     assert result.ok, "\n" + format_audit(failures(result.table))
     assert (result.table["deviation"].dropna() <= AUDIT_RTOL).all()
+
+
+def test_model_audit_names_an_element_the_scene_lacks(adapter):
+    """A user constraint added to the RSSR's built model after the build:
+    an element nothing in the scene accounts for, one row that differs."""
+    from mechval.engines.pybullet.model import p
+    from mechval.engines.pybullet.spatial import start_model
+    from mechval.engines.pybullet.spatial_audit import expected_spatial, read_spatial
+    from mechval.records.audit import audit, failures
+    system = RSSR().system
+    start = start_model(system, AUDIT_TIMES, audit_settings(adapter, system))
+    try:
+        (ui, li), (uj, lj) = start.model.handles["input"], start.model.handles["output"]
+        cid = p.createConstraint(ui, li, uj, lj, p.JOINT_POINT2POINT, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0),
+                                 (0.0, 0.0, 0.0), physicsClientId=start.model.client)
+        readings = read_spatial(system, start)
+    finally:
+        p.disconnect(start.model.client)
+    wrong = failures(audit(expected_spatial(system), readings))
+    assert list(zip(wrong["item"], wrong["quantity"], wrong["actual"])) == [("scene", "other elements",
+                                                                             f"constraint {cid}")]

@@ -27,7 +27,8 @@ to its parent: `body_pos`, `body_quat`), so:
 - the scene: `opt.gravity` (0 with gravity disabled), contacts (the flag,
   `ngeom`) and limits (`jnt_limited`, `tendon_limited`).
 Drive clocks, torque-law actuators, free joints and the equalities'
-soft-constraint parameters are notes. A weld holds no point of its own:
+soft-constraint parameters are notes; any joint, equality, tendon or
+actuator no scene element accounts for is an "other elements" row. A weld holds no point of its own:
 its child's point and frame are the scene's ("as set") and the parent's
 are where the weld puts them (read).
 """
@@ -249,13 +250,33 @@ class Reader:
                                "soft constraints (time constant, damping ratio)", "note"))
         return out
 
+    def others(self) -> list[Reading]:
+        """Joints, equalities, tendons and actuators the scene's elements
+        do not account for: a reading with no expectation (it differs),
+        only when there are any."""
+        m, names, system = self.m, self.model.names, self.system
+        ours = {mujoco.mjtObj.mjOBJ_JOINT: {f"clock{k}" for k in range(len(system.drives))}
+                | {f"free_{names.body(b)}" for b in self.model.tree.free}
+                | {names.joint(j.name) + s for j in system.joints for s in JOINT_SUFFIXES},
+                mujoco.mjtObj.mjOBJ_EQUALITY: {f"drive{k}" for k in range(len(system.drives))}
+                | {names.joint(j.name) + s for j in system.joints for s in ("c", "c1", "t")},
+                mujoco.mjtObj.mjOBJ_TENDON: {f"s{k}" for k in range(len(system.springs))}
+                | {names.joint(j.name) + s for j in system.joints for s in ("d", "t")},
+                mujoco.mjtObj.mjOBJ_ACTUATOR: {f"clock{k}" for k in range(len(system.drives))}
+                | {f"torque{k}" for k in range(len(system.torques))}}
+        counts = {mujoco.mjtObj.mjOBJ_JOINT: m.njnt, mujoco.mjtObj.mjOBJ_EQUALITY: m.neq,
+                  mujoco.mjtObj.mjOBJ_TENDON: m.ntendon, mujoco.mjtObj.mjOBJ_ACTUATOR: m.nu}
+        extra = [f"{kind.name[6:].lower()} {mujoco.mj_id2name(m, kind, i)!r}" for kind, n in counts.items()
+                 for i in range(n) if mujoco.mj_id2name(m, kind, i) not in ours[kind]]
+        return [Reading(SCENE, "other elements", "; ".join(extra))] if extra else []
+
     def readings(self) -> list[Reading]:
         out = self.bodies()
         for tj in self.model.tree.joints:
             out += self.tree_joint(tj)
         for j in self.model.tree.cuts:
             out += self.cut_joint(j)
-        return out + self.springs() + self.scene() + self.notes()
+        return out + self.springs() + self.scene() + self.notes() + self.others()
 
 
 def nearest_in_span(point, through, directions) -> np.ndarray:

@@ -37,7 +37,8 @@ elsewhere shows as a wrong centre of mass or point). So:
 - the scene: gravity (`getPhysicsEngineParameters`), collision shapes,
   creation limits (lower ≤ upper).
 Notes: massless links (their mass and inertia read), split bodies' welds,
-free bases, the constraints' force cap.
+free bases, the constraints' force cap; any multibody, link or user
+constraint no scene element accounts for is an "other elements" row.
 """
 
 from __future__ import annotations
@@ -268,13 +269,29 @@ class Reader:
         return [Reading("pybullet", "free bases", ", ".join(free) or "none",
                         "bodies that are a multibody's free base", "note")]
 
+    def others(self) -> list[Reading]:
+        """Multibodies, links and user constraints the scene's elements do
+        not account for: a reading with no expectation (it differs), only
+        when there are any."""
+        c, model = self.c, self.model
+        uids = {uid for uid, _ in model.handles.values()}
+        links = {(tj.uid, link) for tj in model.tree.values() for link in tj.links}
+        cids = {cid for loop in model.loops.values() for cid in loop.cids}
+        extra = [f"multibody {uid}" for uid in range(p.getNumBodies(physicsClientId=c)) if uid not in uids]
+        extra += [f"link {link} of multibody {uid}" for uid in sorted(uids)
+                  for link in range(p.getNumJoints(uid, physicsClientId=c)) if (uid, link) not in links]
+        extra += [f"constraint {cid}" for cid in (p.getConstraintUniqueId(i, physicsClientId=c)
+                                                  for i in range(p.getNumConstraints(physicsClientId=c)))
+                  if cid not in cids]
+        return [Reading(SCENE, "other elements", "; ".join(extra))] if extra else []
+
     def readings(self) -> list[Reading]:
         out = self.bodies()
         for tj in self.model.tree.values():
             out += self.tree_joint(tj)
         for loop in self.model.loops.values():
             out += self.weld(loop) if is_weld(loop.joint) else self.loop_joint(loop)
-        return out + self.springs() + self.scene() + self.notes()
+        return out + self.springs() + self.scene() + self.notes() + self.others()
 
 
 def read_spatial(system: SpatialSystem, start: Start) -> list[Reading]:

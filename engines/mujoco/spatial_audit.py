@@ -98,11 +98,13 @@ class Reader:
         jn = self.model.names.joint(j.name)
         ids = [i for i in (_id(m, mujoco.mjtObj.mjOBJ_JOINT, jn + s) for s in JOINT_SUFFIXES) if i >= 0]
         ids.sort()                                  # the child's order: the first is fixed in the parent
-        child = self.model.bid[tj.child]
-        if any(m.jnt_bodyid[i] != child for i in ids):
-            raise AssertionError(f"mujoco audit: {j.name}'s joints are not all in its child body")
+        # The body the joints move (a weld has none: the child the tree names)
+        holders = sorted({int(m.jnt_bodyid[i]) for i in ids}) or [self.model.bid[tj.child]]
+        child = holders[0]
         parent = int(m.body_parentid[child])
         kind = KINDS.get(tuple(int(m.jnt_type[i]) for i in ids), "+".join(str(m.jnt_type[i]) for i in ids))
+        if len(holders) > 1:
+            kind += f" over {len(holders)} bodies"
         # The child's frame in the parent's (at the start: qpos0)
         R, o = _rotation(m.body_quat[child]), np.array(m.body_pos[child])
         out = [Reading(item, "kind", kind, "a slide and a hinge" if kind == "cylindrical" else
@@ -110,14 +112,14 @@ class Reader:
                        "a weld: the child has no joint" if kind == "fixed" else ""),
                Reading(item, "bodies", self.pair_text(j, self.body_name(parent), self.body_name(child))),
                Reading(item, "damping", self.damping(ids))]
-        on_parent = {j.body_i: tj.parent == j.body_i, j.body_j: tj.parent == j.body_j}
+        parent_name = self.body_name(parent)           # as MuJoCo's tree holds it
         sides = (("i", j.body_i, np.asarray(j.point_i, float), np.asarray(j.frame_i, float)),
                  ("j", j.body_j, np.asarray(j.point_j, float), np.asarray(j.frame_j, float)))
         for side, body, point, frame in sides:
-            parent_side = on_parent[body]
+            parent_side = body == parent_name
             if kind == "fixed":
                 # The weld's child point and frame are the scene's; the parent's are where it puts them.
-                other = next(s for s in sides if s[1] == tj.child)
+                other = next(s for s in sides if s[1] != parent_name)
                 p, F = other[2], other[3]
                 value, axes, source = ((o + R @ p, R @ F, "read") if parent_side else (p, F, "set"))
                 note = "where the weld puts the child's point" if parent_side else \
@@ -175,10 +177,9 @@ class Reader:
         kind = CUT_KINDS.get(tuple(int(m.eq_type[e]) for e in eqs), "unknown")
         how = {"spherical": "a connect", "revolute": "two connects along the axis",
                "universal": "a connect and a tendon equality between the pins"}.get(kind, "")
+        if any(m.eq_type[e] == CONNECT and m.eq_objtype[e] != mujoco.mjtObj.mjOBJ_SITE for e in eqs):
+            return [Reading(item, "kind", f"{kind}, a connect between bodies", "this audit reads site connects")]
         ends = {}                                # body → (site point, second site point or None)
-        for e in eqs:
-            if m.eq_type[e] == CONNECT and m.eq_objtype[e] != mujoco.mjtObj.mjOBJ_SITE:
-                raise AssertionError(f"mujoco audit: equality {e} of {j.name} is not between sites")
         connect = eqs[0]
         for sid in (m.eq_obj1id[connect], m.eq_obj2id[connect]):
             body, p = self.site(sid)

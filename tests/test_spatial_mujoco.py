@@ -21,6 +21,7 @@ from mechval.model.drive import DriveLaw
 from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
+from mechval.scenarios.loader import load, spatial_builtin_names
 from mechval.reference.spatial.resultants import spatial_resultants
 from mechval.reference.spatial.rotation import frame_from_axis
 from mechval.testing import SpatialContract
@@ -30,6 +31,7 @@ from spatial_benchmarks import Bricard, FlyballGovernor
 from spatial_mechanisms import HookesJoint, GRAVITY, RSSR, Bennett, Delta, HeavyTop, SphericalFourBar, TumblingBody, inertia, \
     revolute, unit
 from test_spatial_joint_kinds import sliding_body
+from test_spatial_pybullet import driven_slide
 
 try:
     import mujoco  # noqa: F401
@@ -404,3 +406,98 @@ def test_planar_builtin_as_a_spatial_twin(name):
     measured = errors(raw, ref)
     for cls, err in measured.items():
         assert err <= DEFAULT_TOLERANCE[cls], (cls, err, measured)
+
+
+AUDITED = {"RSSR": lambda: RSSR().system, "delta": lambda: Delta().system, "Bennett": lambda: Bennett().system,
+           "T-handle": lambda: with_velocities(TumblingBody()), "Hooke": hooke,
+           "A05": lambda: FlyballGovernor().system, "forced arm": forced_arm, "crank, plate, slider": crank_plate_slider,
+           "reversed": lambda: reversed_rssr(), "cylindrical": lambda: sliding_body("cylindrical", (0.3, -0.2, 1.0))[0],
+           "planar": lambda: sliding_body("planar", (0.2, -0.3, 1.0))[0], "driven slide": driven_slide}
+
+
+def reversed_rssr() -> SpatialSystem:
+    """The RSSR with every joint declared child first (the tree's parent is
+    body_j): the audit carries the points and axes to the other side."""
+    system = RSSR().system
+    return dataclasses.replace(system, joints=tuple(reversed_joint(j) for j in system.joints))
+
+
+def audit_settings(system: SpatialSystem, t: np.ndarray) -> dict:
+    """The defaults at Ω = 10 rad/s (1 ms steps) and no pre-roll: what is
+    audited is the model's start, built the same at any step; the scene's
+    own Ω would cost a reference solve on 20,001 instants per scene (the
+    CLI's audit of the built-ins takes the defaults as they are)."""
+    mechanism = spatial_mechanism(system)
+    return {**MujocoAdapter().default_settings(mechanism, t, rates=PeakRates(t, None, 10.0)), "preroll_timeconsts": 0.0}
+
+
+@pytest.mark.parametrize("scene", list(AUDITED))
+def test_model_audit_reads_the_scene_back(scene):
+    """Masses, centres of mass, inertia tensors (principal moments and
+    axes rotated back), joint kinds, points and axes on both bodies,
+    damping, springs and gravity read back from the compiled MjModel equal
+    the scene's to 1e-12, through the adapter; a weld's child side is the
+    only "as set"."""
+    from mechval.records.audit import failures
+    system = AUDITED[scene]()
+    t = np.linspace(0.4, 0.402, 3)          # the start is what is audited: bodies turned from their file pose
+    adapter = MujocoAdapter()
+    table = adapter.audit(spatial_mechanism(system), t, audit_settings(system, t))
+    assert failures(table).empty, failures(table).to_string()
+    assert (table["verdict"] == "match").sum() >= len(system.bodies) * 10
+    fixed = {j.name for j in system.joints if j.kind == "fixed"}
+    assert set(table.loc[table["verdict"] == "as set", "item"]) == {f"joint {name}" for name in fixed}
+
+
+def test_model_audit_sees_a_difference():
+    """A model built for one scene audited against another whose body has
+    its centre of mass moved 1 mm, and one whose crank axis is tilted:
+    those rows, and only they, differ."""
+    from mechval.engines.mujoco.spatial_audit import built, expected_spatial, read_spatial
+    from mechval.records.audit import audit, failures
+    system = RSSR().system
+    t = np.linspace(0.4, 0.402, 3)
+    model = built(system, t, audit_settings(system, t))
+    moved = dataclasses.replace(system.bodies[1], com=tuple(np.add(system.bodies[1].com, (0.0, 0.001, 0.0))))
+    other = dataclasses.replace(system, bodies=(system.bodies[0], moved, system.bodies[2]))
+    wrong = failures(audit(expected_spatial(other), read_spatial(model)))
+    assert list(zip(wrong["item"], wrong["quantity"])) == [("body coupler", "com y")]
+    # The output's bearing tilted by 1 mrad: its axis rows on the ground (those that change) differ.
+    C = system.joint("C")
+    tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(1e-3), -np.sin(1e-3)], [0.0, np.sin(1e-3), np.cos(1e-3)]])
+    other = dataclasses.replace(system, joints=tuple(dataclasses.replace(j, frame_i=tilt @ j.frame_i) if j is C else j
+                                                     for j in system.joints))
+    changed = [(e.item, e.quantity) for e, f in zip(expected_spatial(system), expected_spatial(other))
+               if e.value != f.value]
+    wrong = failures(audit(expected_spatial(other), read_spatial(model)))
+    assert changed and set(changed) <= {("joint C", f"axis i z{c}") for c in "xyz"}
+    assert list(zip(wrong["item"], wrong["quantity"])) == changed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", spatial_builtin_names())
+def test_spatial_builtin_models_are_the_scene(name):
+    """Every spatial built-in through the harness's audit at its default
+    settings (as `mechval audit spatial/NAME --engine mujoco`): no row
+    differs or is missing, every deviation within the audit's 1e-12."""
+    from mechval.harness.audit_run import audit_scenario
+    from mechval.records.audit import AUDIT_RTOL, failures, format_audit
+    result = audit_scenario(load(name), "mujoco")
+    assert result.table is not None, result.error
+    assert result.ok, "\n" + format_audit(failures(result.table))
+    assert (result.table["deviation"].dropna() <= AUDIT_RTOL).all()
+
+
+def test_model_audit_names_an_element_the_scene_lacks():
+    """The forced arm's model read as if its scene had no torque law: the
+    actuator is an element nothing in the scene accounts for, one row that
+    differs."""
+    from mechval.engines.mujoco.spatial_audit import Reader, built, expected_spatial
+    from mechval.records.audit import audit, failures
+    system = forced_arm()
+    t = np.linspace(0.0, 0.002, 3)
+    reader = Reader(built(system, t, audit_settings(system, t)))
+    reader.system = dataclasses.replace(system, torques=())
+    wrong = failures(audit(expected_spatial(reader.system), reader.readings()))
+    assert list(zip(wrong["item"], wrong["quantity"], wrong["actual"])) == [("scene", "other elements",
+                                                                             "actuator 'torque0'")]

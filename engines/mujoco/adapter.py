@@ -106,6 +106,7 @@ from mechval.engines.mujoco.audit import audit_model
 from mechval.engines.mujoco.model import INTEGRATORS, SOLIMP
 from mechval.engines.mujoco.run import Model, warnings_silenced
 from mechval.engines.mujoco.spatial import run_spatial
+from mechval.engines.mujoco.spatial_audit import audit_spatial
 from mechval.reference.spatial.system import JOINT_KINDS
 
 MODES = ("forward", "inverse")
@@ -209,7 +210,7 @@ class MujocoAdapter(EngineAdapter):
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         if mechanism.spatial is not None:
-            raise NotImplementedError("mujoco: no model audit of spatial scenes yet")
+            return audit_spatial(mechanism.spatial, times, settings)
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:

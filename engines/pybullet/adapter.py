@@ -61,6 +61,7 @@ from mechval.engines.base import EngineAdapter, PeakRates, RawRun, default_step,
 from mechval.engines.pybullet.audit import audit_model
 from mechval.engines.pybullet.run import run_model
 from mechval.engines.pybullet.spatial import run_spatial
+from mechval.engines.pybullet.spatial_audit import audit_spatial
 from mechval.engines.pybullet.spatial_build import TREE_KINDS
 
 #: Step rule factor (rad per step at the run's peak rate Ω, see
@@ -117,7 +118,7 @@ class PybulletAdapter(EngineAdapter):
 
     def audit(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> pd.DataFrame:
         if mechanism.spatial is not None:
-            raise NotImplementedError(f"{self.name}: no model audit of spatial scenes yet")
+            return audit_spatial(mechanism.spatial, times, settings)
         return audit_model(mechanism, times, settings)
 
     def run(self, mechanism: Mechanism, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:

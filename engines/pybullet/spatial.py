@@ -30,6 +30,7 @@ a drive's effort is its motor's applied torque or force as read.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
@@ -155,33 +156,57 @@ def _matrix(q) -> np.ndarray:
     return np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3)
 
 
-def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
-    """Build, step and read one run of `system` at instants `times` with the
-    adapter's settings (timestep, preroll_steps); its own DIRECT client,
-    always disconnected."""
+@dataclass(frozen=True)
+class Start:
+    """A model built as a run starts it: the system PyBullet builds (split
+    bodies' halves), {twin: body}, the model in the start pose, the
+    reference's pose and mid-step rates there (twins included), the step
+    and the samples' plan."""
+
+    built: SpatialSystem
+    twins: dict[str, str]
+    model: SpatialModel
+    pose: pd.DataFrame
+    rates: pd.DataFrame
+    dt: float
+    per_sample: int
+    preroll: int
+
+
+def start_model(system: SpatialSystem, times: np.ndarray, settings: Mapping[str, Any]) -> Start:
+    """Build `system` in the pose a run of it at `times` starts from (its
+    own DIRECT client: the caller disconnects it)."""
     from mechval.engines.pybullet.run import step_plan
     built, twins = buildable(system)    # refused before any solve
-    times = np.asarray(times, dtype=float)
-    dt, per_sample, preroll = step_plan(times, settings)
+    dt, per_sample, preroll = step_plan(np.asarray(times, dtype=float), settings)
     free = system.forward_dynamics
     if preroll and free:
         raise Unrepresentable("engines.pybullet.preroll_steps", FREE_PREROLL)
-    started = time.perf_counter()
     t_start = float(times[0]) - preroll * dt
     pose, rates = start_state(system, t_start, dt, free)
     pose, rates = _with_twins(pose, twins), _with_twins(rates, twins)
     pos = {b.name: _columns(pose, b.name, "x y z") for b in built.bodies}
     rot = {b.name: quaternion_to_matrix(_columns(pose, b.name, "qw qx qy qz")) for b in built.bodies}
-    model = build_spatial(built, dt, pos, rot)
+    return Start(built, twins, build_spatial(built, dt, pos, rot), pose, rates, dt, per_sample, preroll)
+
+
+def run_spatial(system: SpatialSystem, times: np.ndarray, settings: Mapping[str, Any]) -> RawRun:
+    """Build, step and read one run of `system` at instants `times` with the
+    adapter's settings (timestep, preroll_steps); its own DIRECT client,
+    always disconnected."""
+    times = np.asarray(times, dtype=float)
+    started = time.perf_counter()
+    start = start_model(system, times, settings)
+    built, twins, model = start.built, start.twins, start.model
     try:
-        set_rates(built, model, pose, rates)
+        set_rates(built, model, start.pose, start.rates)
         ready = time.perf_counter()
-        frame, steps, loads = Stepper(built, model, times, per_sample, preroll, system).run()
+        frame, steps, loads = Stepper(built, model, times, start.per_sample, start.preroll, system).run()
         wall = time.perf_counter() - ready
     finally:
         p.disconnect(model.client)
     frame = frame.assign(**tree_reactions(built, model, frame, loads))
-    info = {"timestep_used": dt, "steps": steps, "build_time_s": ready - started, "wall_time_s": wall,
+    info = {"timestep_used": start.dt, "steps": steps, "build_time_s": ready - started, "wall_time_s": wall,
             "tree_joints": ", ".join(model.tree), "loop_joints": ", ".join(model.loops) or "none",
             "split_bodies": ", ".join(twins.values()) or "none",
             "reactions": "loop joints: their constraints' forces; tree joints: derived from the balance of the "

@@ -22,8 +22,9 @@ TITLE = "Model audit: what each engine will simulate"
 SECTION = Environment(autoescape=True).from_string("""
 <style>table.audit td { text-align: left; } table.audit td:nth-child(-n+2) { white-space: nowrap; }</style>
 <p>Each engine's model is built exactly as its run builds it and read back: every body's mass, centre of
-mass (body frame) and izz, every joint's kind, bodies, points, axis and damping, the drive law, gravity,
-and the effects the scene does not ask for, which must be absent. Engine values are converted to the
+mass (body frame) and izz (a spatial scene's: the whole inertia tensor about the centre of mass, body axes),
+every joint's kind, bodies, points, axis (a spatial joint's on each of its bodies) and damping, the drive
+law, springs, gravity, and the effects the scene does not ask for, which must be absent. Engine values are converted to the
 Mechanism's frames (world positions in the model's start state, expressed in each body's frame at the
 reference pose). <em>match</em>: read back and equal (within {{ rtol }} of the value's scale);
 <em>as set</em>: the engine cannot report it, the value the build passed to it; <em>note</em>: an engine

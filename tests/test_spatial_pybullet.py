@@ -18,13 +18,13 @@ from mechval.model.drive import DriveLaw
 from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
-from mechval.scenarios.loader import load, spatial_builtin_names
 from mechval.reference.spatial.rotation import frame_from_axis
 from mechval.testing import SpatialContract
 from mechval.reference.spatial.system import BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem, Spring
 from spatial_benchmarks import Bricard, FlyballGovernor
 from spatial_mechanisms import HookesJoint, GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia, revolute, unit
 from test_spatial_joint_kinds import sliding_body
+from spatial_audit_checks import assert_the_audit_sees_a_moved_centre_and_a_tilted_axis
 
 pytestmark = pytest.mark.engine
 
@@ -344,41 +344,14 @@ def test_model_audit_sees_a_difference(adapter):
     1 mrad: those rows, and only they, differ."""
     from mechval.engines.pybullet.model import p
     from mechval.engines.pybullet.spatial import start_model
-    from mechval.engines.pybullet.spatial_audit import expected_spatial, read_spatial
-    from mechval.records.audit import audit, failures
+    from mechval.engines.pybullet.spatial_audit import read_spatial
     system = RSSR().system
     start = start_model(system, AUDIT_TIMES, audit_settings(adapter, system))
     try:
         readings = read_spatial(system, start)
     finally:
         p.disconnect(start.model.client)
-    moved = dataclasses.replace(system.bodies[1], com=tuple(np.add(system.bodies[1].com, (0.0, 0.001, 0.0))))
-    other = dataclasses.replace(system, bodies=(system.bodies[0], moved, system.bodies[2]))
-    wrong = failures(audit(expected_spatial(other), readings))
-    assert list(zip(wrong["item"], wrong["quantity"])) == [("body coupler", "com y")]
-    C = system.joint("C")
-    tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(1e-3), -np.sin(1e-3)], [0.0, np.sin(1e-3), np.cos(1e-3)]])
-    other = dataclasses.replace(system, joints=tuple(dataclasses.replace(j, frame_i=tilt @ j.frame_i) if j is C else j
-                                                     for j in system.joints))
-    changed = [(e.item, e.quantity) for e, f in zip(expected_spatial(system), expected_spatial(other))
-               if e.value != f.value]
-    wrong = failures(audit(expected_spatial(other), readings))
-    assert changed and set(changed) <= {("joint C", f"axis i z{c}") for c in "xyz"}
-    assert list(zip(wrong["item"], wrong["quantity"])) == changed
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("name", spatial_builtin_names())
-def test_spatial_builtin_models_are_the_scene(name):
-    """Every spatial built-in through the harness's audit at its default
-    settings (as `mechval audit spatial/NAME --engine pybullet`): no row
-    differs or is missing, every deviation within the audit's 1e-12."""
-    from mechval.harness.audit_run import audit_scenario
-    from mechval.records.audit import AUDIT_RTOL, failures, format_audit
-    result = audit_scenario(load(name), "pybullet")
-    assert result.table is not None, result.error
-    assert result.ok, "\n" + format_audit(failures(result.table))
-    assert (result.table["deviation"].dropna() <= AUDIT_RTOL).all()
+    assert_the_audit_sees_a_moved_centre_and_a_tilted_axis(system, readings)
 
 
 def test_model_audit_names_an_element_the_scene_lacks(adapter):

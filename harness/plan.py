@@ -20,6 +20,7 @@ derives nothing.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
@@ -73,6 +74,12 @@ class Plan:
         """The values of `resolved`."""
         return dict(self.resolved(engine, overrides).values)
 
+    @functools.cached_property
+    def features(self) -> dict[str, str]:
+        """`mechanism_features`, found once per plan (a rank test of the
+        joints' Jacobian; asked for every engine)."""
+        return mechanism_features(self.mechanism)
+
     def refusal(self, engine_adapter: EngineAdapter | str) -> str:
         """Why the adapter declares it cannot build this scene (key and
         reason of `refuse_unbuilt_features`), or ""."""
@@ -85,7 +92,7 @@ class Plan:
     def refuse_unbuilt_features(self, engine_adapter: EngineAdapter) -> None:
         """A ScenarioError naming the file and key of the first feature of
         the scene the adapter does not build (`mechanism_features`)."""
-        for feature, key in mechanism_features(self.mechanism).items():
+        for feature, key in self.features.items():
             if feature not in engine_adapter.features:
                 why = engine_adapter.feature_limits.get(feature)
                 raise ScenarioError(self.scenario.source, key, f"{engine_adapter.name}: " + (

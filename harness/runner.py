@@ -17,7 +17,6 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 import pandas as pd
 
 from mechval.adapter import PeakRates
-from mechval.engines.base import peak_rates
 from mechval.judging.compare import COLUMNS, compare
 from mechval.engines.registry import REFERENCE, adapter
 from mechval.records.outcome import Outcome, Task
@@ -129,25 +128,27 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
 
 
 def prepared_on(executor: Executor, scenarios: Sequence[Scenario], engines: Sequence[str]) -> list[Plan]:
-    """Each scene prepared for `engines` (`mechval.harness.plan.prepare`),
-    the solve of its peak rates (a dense solve of its motion; for a
-    torque-driven or free scene an integration of the forward-dynamics
-    reference, the longer part) done by the executor's workers, in
-    parallel. The rates come back (arrays and a number); the mechanism is
-    built here again (it solves nothing) and the engines' defaults derived
-    from them. A scene whose solve fails there is prepared here, so that
-    its error is raised as it would be in one process."""
+    """Each scene prepared for `engines` (`mechval.harness.plan.prepare`) by
+    the executor's workers, in parallel: the solve of its peak rates (a
+    dense solve of its motion; for a torque-driven or free scene an
+    integration of the forward-dynamics reference, the longer part) and
+    each engine's defaults from them (some solve again: Exudyn's force
+    scale). The rates and defaults come back (arrays, numbers and names);
+    the mechanism is built here again (it solves nothing). A scene whose
+    preparation fails there is prepared here, so that its error is
+    raised as it would be in one process."""
     if not any(adapter(engine).uses_peak_rates for engine in engines):
         return [prepare(scenario, engines) for scenario in scenarios]
-    solved = executor.run(rates_job, list(scenarios))
-    return [prepare(scenario, engines) if done.error
-            else Plan(scenario, build_mechanism(scenario), done.value, {}).for_engines(engines)
+    solved = executor.run(functools.partial(preparation_job, engines=list(engines)), list(scenarios))
+    return [prepare(scenario, engines) if done.error else Plan(scenario, build_mechanism(scenario), *done.value)
             for scenario, done in zip(scenarios, solved)]
 
 
-def rates_job(scenario: Scenario) -> PeakRates:
-    """A worker's part of a scene's preparation: its peak rates."""
-    return peak_rates(build_mechanism(scenario), scenario.time.t)
+def preparation_job(scenario: Scenario, engines: Sequence[str]) -> tuple[PeakRates | None, dict]:
+    """A worker's part of a scene's preparation: its peak rates and every
+    engine's defaults."""
+    plan = prepare(scenario, engines)
+    return plan.rates, dict(plan.defaults)
 
 
 def import_engines(engines: Iterable[str]) -> None:

@@ -39,6 +39,7 @@ import pandas as pd
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_times
 from mechval.reference.spatial.joints import Constraints, Pose
+from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.resultants import resultant_columns
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
 from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, newton, structure
@@ -86,27 +87,27 @@ class State:
     dw: np.ndarray
     lam: np.ndarray
     jac: np.ndarray
-    #: The rows its square solves kept, and their Jacobian's inverse.
+    #: The rows its square solves kept, and their Jacobian's LU factors.
     rows: tuple[int, ...] = ()
-    inverse: np.ndarray | None = None
+    lu: LU | None = None
 
 
 def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
           extra: np.ndarray | None = None) -> State:
     """Velocities, accelerations and multipliers at solved positions by the
-    kept rows' Jacobian, inverted once for the three solves (and for its
+    kept rows' Jacobian, factorised once for the three solves (and for its
     condition); `extra`: Q on top of the applied forces."""
     idx = list(rows)
     nb = len(c.bodies)
     out = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))     # Φq and −Φt (γ is not needed at rest)
-    inverse = np.linalg.inv(out["jac"][:, idx])
-    w = np.einsum("nij,nj->ni", inverse, out["rhs"][:, idx]).reshape(len(t), nb, 6)
+    lu = LU(out["jac"][:, idx])
+    w = lu.solve(out["rhs"][:, idx]).reshape(len(t), nb, 6)
     gamma = c.evaluate(pose, t, w, jacobian=False)["gamma"][:, idx]
-    dw = np.einsum("nij,nj->ni", inverse, gamma).reshape(len(t), nb, 6)
+    dw = lu.solve(gamma).reshape(len(t), nb, 6)
     Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
     lam = np.zeros((len(t), c.m))
-    lam[:, idx] = np.einsum("nji,nj->ni", inverse, Q - mass_times(c.system, pose, dw))
-    return State(t, pose, w, dw, lam, out["jac"], tuple(rows), inverse)
+    lam[:, idx] = lu.solve_transposed(Q - mass_times(c.system, pose, dw))
+    return State(t, pose, w, dw, lam, out["jac"], tuple(rows), lu)
 
 
 class SpatialSolver:
@@ -151,9 +152,9 @@ class SpatialSolver:
             predicted = predict(last, t)
             shortest = step <= 1e-9 * max(1.0, abs(t_end - t0))
             try:
-                rows, _, inverse = self.rows_at(predicted, t, last.rows, found)
+                rows, _, lu = self.rows_at(predicted, t, last.rows, found)
                 solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation",
-                                inverse=inverse if rows == last.rows else None)
+                                lu=lu if rows == last.rows else None)
             except MechanismError:
                 if shortest:
                     raise
@@ -207,23 +208,21 @@ class SpatialSolver:
                 mask = which == k
                 guess = predict(nodes[k], tt[mask])
                 predicted.G[mask], predicted.A[mask] = guess.G, guess.A
-            better, poor, inverse = self.rows_at(predicted, tt, rows, found)
+            better, poor, lu = self.rows_at(predicted, tt, rows, found)
             if better != rows:     # near a pose where these rows turn singular: the poor instants get others
                 flags = group(index[poor], which[poor], better)
                 if poor.all():
                     return flags
                 keep = ~poor
                 return flags | group(index[keep], which[keep], rows)
-            pose = newton(self.c, self.scaling, predicted, tt, rows, where="batch", inverse=inverse)
+            pose = newton(self.c, self.scaling, predicted, tt, rows, where="batch", lu=lu)
             jump = self.scaling.step(flat_difference(pose, predicted))
             if jump.max() > BRANCH_JUMP:
                 k = int(np.argmax(jump))
                 raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
                                              "the continuation's prediction: a branch point or near-singular position")
             state = rates(self.c, self.forces, pose, tt, rows)
-            row, column = self.scaling.row[list(rows)], self.scaling.column
-            condition[index] = condition_1(state.jac[:, list(rows)] * row[:, None] * column,
-                                           state.inverse / column[:, None] / row)
+            condition[index] = state.lu.condition(self.scaling.row[list(rows)], self.scaling.column)
             table[0, index] = tt
             table[1:, index] = self._columns(state)
             if found.redundant:    # −Φqᵀ·λ per body: unique however λ is split
@@ -247,20 +246,19 @@ class SpatialSolver:
         return SpatialSolution(frame, missing, found, facts, condition)
 
     def rows_at(self, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
-                found: Structure) -> tuple[tuple[int, ...], np.ndarray, np.ndarray]:
+                found: Structure) -> tuple[tuple[int, ...], np.ndarray, LU]:
         """Rows to keep near `pose`: `rows`, unless their scaled Jacobian's
         condition exceeds REPICK_CONDITION at some instant, then rows
         picked afresh at the first such instant; which instants those are;
-        and the inverse of `rows`' Jacobian at `pose` (Newton's first)."""
+        and the LU factors of `rows`' Jacobian at `pose` (Newton's first)."""
         J = self.c.evaluate(pose, t)["jac"]
         idx = list(rows)
-        inverse = np.linalg.inv(J[:, idx])
-        row, column = self.scaling.row[idx], self.scaling.column
-        poor = condition_1(J[:, idx] * row[:, None] * column, inverse / column[:, None] / row) > REPICK_CONDITION
+        lu = LU(J[:, idx])
+        poor = lu.condition(self.scaling.row[idx], self.scaling.column) > REPICK_CONDITION
         if not poor.any():
-            return rows, poor, inverse
+            return rows, poor, lu
         k = int(np.argmax(poor))
-        return kept_rows(self.c, self.scaling.jacobian(J[k]), self.c.n - found.mobility), poor, inverse
+        return kept_rows(self.c, self.scaling.jacobian(J[k]), self.c.n - found.mobility), poor, lu
 
     # -- columns ------------------------------------------------------------------------------
 
@@ -343,14 +341,6 @@ class SpatialSolver:
             flags |= (reached > UNIQUE_TOL * reached.max(axis=0, keepdims=True)).any(axis=1)
         motion = len(self.system.motion_columns())
         return np.concatenate([np.zeros(motion, dtype=bool), flags])
-
-
-def condition_1(J: np.ndarray, inverse: np.ndarray | None = None) -> np.ndarray:
-    """‖J‖₁·‖J⁻¹‖₁ per instant: the 1-norm condition number, by one batched
-    LU inverse unless given (an SVD per instant costs several times more);
-    within a factor n of the 2-norm one."""
-    norm = lambda M: np.abs(M).sum(axis=-2).max(axis=-1)     # noqa: E731
-    return norm(J) * norm(np.linalg.inv(J) if inverse is None else inverse)
 
 
 def predict(node: State, t: np.ndarray) -> Pose:

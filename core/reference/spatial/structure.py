@@ -17,6 +17,7 @@ from scipy.linalg import qr
 
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.joints import Constraints, Pose
+from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.rotation import exp_map, orthonormalised
 
 #: A singular value of the scaled Jacobian below this fraction of the
@@ -93,22 +94,22 @@ def settled(size: np.ndarray, previous: np.ndarray) -> np.ndarray:
 
 
 def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tuple[int, ...] | None,
-           where: str = "assembly", inverse: np.ndarray | None = None) -> Pose:
+           where: str = "assembly", lu: LU | None = None) -> Pose:
     """Newton on Φ(q, t) = 0 to the fixed point. With `rows` (as many as
     coordinates) each step solves those rows squarely, all instants at
     once; without, one instant by least squares on all rows (the
     minimum-norm step: assembly, redundant or not). Raises MechanismError
-    where it does not settle or the loop does not close. `inverse`: the
-    kept rows' Jacobian inverted at `pose`, if at hand."""
+    where it does not settle or the loop does not close. `lu`: the kept
+    rows' Jacobian factorised at `pose`, if at hand."""
     if not c.m:      # free bodies: nothing to close
         return pose
     previous = np.full(len(pose), np.inf)
     done = np.zeros(len(pose), dtype=bool)
     for it in range(NEWTON_ITERATIONS):
-        # batches: chord iterations, the kept rows' Jacobian inverted at the
+        # batches: chord iterations, the kept rows' Jacobian factorised at the
         # first iterate and afresh every CHORD iterations (each further
-        # iteration evaluates Φ alone: cheaper than a Jacobian and a solve)
-        fresh = rows is None or (it % CHORD == 0 and not (it == 0 and inverse is not None))
+        # iteration evaluates Φ alone: cheaper than a Jacobian and its LU)
+        fresh = rows is None or (it % CHORD == 0 and not (it == 0 and lu is not None))
         out = c.evaluate(pose, t, jacobian=fresh)
         if rows is None:
             Js = scaling.jacobian(out["jac"][0])
@@ -117,9 +118,9 @@ def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tu
         else:
             idx = list(rows)
             if fresh:
-                inverse = np.linalg.inv(out["jac"][:, idx])
+                lu = LU(out["jac"][:, idx])
                 previous = np.full(len(pose), np.inf)      # the rate estimate starts over
-            dq = -np.einsum("nij,nj->ni", inverse, out["phi"][:, idx])
+            dq = -lu.solve(out["phi"][:, idx])
         size = scaling.step(dq)
         dq[done] = 0.0
         pose = moved(pose, dq)

@@ -1,0 +1,167 @@
+"""The constraint rows of `mechval.reference.spatial.joints`, evaluated
+by one compiled loop over instants and rows: Φ, Φq, −Φt and γ.
+
+The rows are not written here: `joints.Constraints` encodes its row
+names (`joints.ROW_NAMES`, e.g. "dx", "xi.zj", "yi.d") as a table of
+integers, and this loop only knows the two shapes a row can take (the
+module docstring of `joints`): a component of d = Pj − Pi, or the dot
+product x·y of two of the seven world vectors a joint carries (its
+frames' axes xi … zj and d); and the two drives, revolute
+cos φ·(yi·xj) − sin φ·(xi·xj) and prismatic zi·d − φ.
+
+Per vector: its value, rate and bias (rate and bias as
+`joints.Constraints`' docstring defines them) and its variation per end
+of the joint, a 3 × 6 block [δG | δπ] (zero for the ground).
+Compiled with numba (cached beside this module) and releasing the GIL.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+#: Row shapes of the encoded table.
+COMPONENT, DOT, REVOLUTE_DRIVE, PRISMATIC_DRIVE = 0, 1, 2, 3
+#: Vector slots of a joint: its frames' axes, then d = Pj − Pi.
+SLOTS = ("xi", "yi", "zi", "xj", "yj", "zj", "d")
+D = 6
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _inner(a, b):
+    """a·b of short vectors (numba's @ calls BLAS: slower at this size)."""
+    s = 0.0
+    for k in range(len(a)):
+        s += a[k] * b[k]
+    return s
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _minus_skew(h, block):
+    """block[:, 3:] = −h̃ (δ(A·h') = δπ × h = −h̃·δπ)."""
+    block[0, 4], block[0, 5] = h[2], -h[1]
+    block[1, 3], block[1, 5] = -h[2], h[0]
+    block[2, 3], block[2, 4] = h[1], -h[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks):
+    """The seven vectors of one joint at one instant (see the module)."""
+    turn, spin = np.empty(3), np.empty(3)
+    blocks[:] = 0.0
+    rate[:] = 0.0
+    bias[:] = 0.0
+    value[D] = 0.0
+    for side in range(2):
+        b = body[side]
+        sign = 1.0 if side == 1 else -1.0
+        for k in range(3):
+            slot = 3 * side + k
+            if b < 0:
+                value[slot] = frame[side, :, k]
+                continue
+            for r in range(3):
+                value[slot, r] = A[b, r, 0] * frame[side, 0, k] + A[b, r, 1] * frame[side, 1, k] \
+                    + A[b, r, 2] * frame[side, 2, k]
+            _cross(w[b, 3:], value[slot], rate[slot])
+            _cross(w[b, 3:], rate[slot], bias[slot])
+            _minus_skew(value[slot], blocks[slot, side])
+        if b < 0:
+            value[D] += sign * arm[side]
+            continue
+        a = np.empty(3)
+        for r in range(3):
+            a[r] = A[b, r, 0] * arm[side, 0] + A[b, r, 1] * arm[side, 1] + A[b, r, 2] * arm[side, 2]
+        _cross(w[b, 3:], a, turn)
+        _cross(w[b, 3:], turn, spin)
+        for r in range(3):
+            value[D, r] += sign * (G[b, r] + a[r])
+            rate[D, r] += sign * (w[b, r] + turn[r])
+            bias[D, r] += sign * spin[r]
+            blocks[D, side, r, r] = sign
+        _minus_skew(sign * a, blocks[D, side])
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _dot(x, y, value, rate, bias, blocks, part):
+    """x·y of slots x, y: its value and γ; its variation per end in part (2, 6)."""
+    part[:] = 0.0
+    for side in range(2):
+        for q in range(6):
+            s = 0.0
+            for c in range(3):
+                s += value[y, c] * blocks[x, side, c, q] + value[x, c] * blocks[y, side, c, q]
+            part[side, q] = s
+    v = _inner(value[x], value[y])
+    gamma = -(_inner(bias[x], value[y]) + 2 * _inner(rate[x], rate[y]) + _inner(value[x], bias[y]))
+    return v, gamma
+
+
+@numba.njit(cache=True, nogil=True)
+def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobian, n):
+    """Φ (N, m), Φq (N, m, n) (empty unless `jacobian`), −Φt and γ (N, m).
+
+    G (N, nb, 3), A (N, nb, 3, 3), w (N, nb, 6); law (N, drives, 3): each
+    drive's φ, φ̇, φ̈; per joint body (J, 2) (−1: ground), arm (J, 2, 3),
+    frame (J, 2, 3, 3); per row its shape, joint, and first, second: the
+    slots of a DOT, the component of a COMPONENT, the drive of a drive.
+    """
+    N, m, J = G.shape[0], len(shape), len(body)
+    phi, rhs, gamma = np.zeros((N, m)), np.zeros((N, m)), np.zeros((N, m))
+    jac = np.zeros((N, m, n) if jacobian else (0, m, n))
+    value, rate, bias = np.empty((J, 7, 3)), np.empty((J, 7, 3)), np.empty((J, 7, 3))
+    blocks = np.empty((J, 7, 2, 3, 6))
+    part, other = np.empty((2, 6)), np.empty((2, 6))
+    for i in range(N):
+        for j in range(J):
+            _vectors(G[i], A[i], w[i], body[j], arm[j], frame[j], value[j], rate[j], bias[j], blocks[j])
+        for r in range(m):
+            j = joint[r]
+            v, g = value[j], 0.0
+            if shape[r] == COMPONENT:
+                c = first[r]
+                phi[i, r] = v[D, c]
+                part[:] = blocks[j, D, :, c]
+                g = -bias[j, D, c]
+            elif shape[r] == DOT:
+                phi[i, r], g = _dot(first[r], second[r], v, rate[j], bias[j], blocks[j], part)
+            elif shape[r] == PRISMATIC_DRIVE:
+                k = first[r]
+                s, g = _dot(2, D, v, rate[j], bias[j], blocks[j], part)
+                phi[i, r] = s - law[i, k, 0]
+                g += law[i, k, 2]
+                rhs[i, r] = law[i, k, 1]
+            else:
+                # f = c·S − s·C, S = yi·xj = sin θ, C = xi·xj = cos θ, c, s = cos φ, sin φ;
+                # f̈ = c·S̈ − s·C̈ + 2(ċ·Ṡ − ṡ·Ċ) + c̈·S − s̈·C
+                k = first[r]
+                angle, speed, acc = law[i, k, 0], law[i, k, 1], law[i, k, 2]
+                S, S_gamma = _dot(1, 3, v, rate[j], bias[j], blocks[j], other)
+                C, C_gamma = _dot(0, 3, v, rate[j], bias[j], blocks[j], part)
+                cos, sin = np.cos(angle), np.sin(angle)
+                S_rate, C_rate = 0.0, 0.0
+                for side in range(2):
+                    b = body[j, side]
+                    if b >= 0:
+                        S_rate += _inner(other[side], w[i, b])
+                        C_rate += _inner(part[side], w[i, b])
+                part[:] = cos * other - sin * part
+                dc, ds = -sin * speed, cos * speed
+                ddc, dds = -cos * speed ** 2 - sin * acc, -sin * speed ** 2 + cos * acc
+                phi[i, r] = cos * S - sin * C
+                g = cos * S_gamma - sin * C_gamma - 2 * (dc * S_rate - ds * C_rate) - ddc * S + dds * C
+                rhs[i, r] = -(dc * S - ds * C)
+            gamma[i, r] = g
+            if jacobian:
+                for side in range(2):
+                    b = body[j, side]
+                    if b >= 0:
+                        jac[i, r, 6 * b:6 * b + 6] += part[side]
+    return phi, jac, rhs, gamma

@@ -44,17 +44,17 @@ def _inner(a, b):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _minus_skew(h, block):
-    """block[:, 3:] = −h̃ (δ(A·h') = δπ × h = −h̃·δπ)."""
-    block[0, 4], block[0, 5] = h[2], -h[1]
-    block[1, 3], block[1, 5] = -h[2], h[0]
-    block[2, 3], block[2, 4] = h[1], -h[0]
+def _minus_skew(h, block, sign=1.0):
+    """block[:, 3:] = −(sign·h)~ (δ(A·h') = δπ × h = −h̃·δπ)."""
+    block[0, 4], block[0, 5] = sign * h[2], -sign * h[1]
+    block[1, 3], block[1, 5] = -sign * h[2], sign * h[0]
+    block[2, 3], block[2, 4] = sign * h[1], -sign * h[0]
 
 
 @numba.njit(cache=True, nogil=True)
-def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks):
+def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks, scratch):
     """The seven vectors of one joint at one instant (see the module)."""
-    turn, spin = np.empty(3), np.empty(3)
+    a, turn, spin = scratch[0], scratch[1], scratch[2]
     blocks[:] = 0.0
     rate[:] = 0.0
     bias[:] = 0.0
@@ -76,7 +76,6 @@ def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks):
         if b < 0:
             value[D] += sign * arm[side]
             continue
-        a = np.empty(3)
         for r in range(3):
             a[r] = A[b, r, 0] * arm[side, 0] + A[b, r, 1] * arm[side, 1] + A[b, r, 2] * arm[side, 2]
         _cross(w[b, 3:], a, turn)
@@ -86,7 +85,7 @@ def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks):
             rate[D, r] += sign * (w[b, r] + turn[r])
             bias[D, r] += sign * spin[r]
             blocks[D, side, r, r] = sign
-        _minus_skew(sign * a, blocks[D, side])
+        _minus_skew(a, blocks[D, side], sign)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -118,10 +117,10 @@ def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobi
     jac = np.zeros((N, m, n) if jacobian else (0, m, n))
     value, rate, bias = np.empty((J, 7, 3)), np.empty((J, 7, 3)), np.empty((J, 7, 3))
     blocks = np.empty((J, 7, 2, 3, 6))
-    part, other = np.empty((2, 6)), np.empty((2, 6))
+    part, other, scratch = np.empty((2, 6)), np.empty((2, 6)), np.empty((3, 3))
     for i in range(N):
         for j in range(J):
-            _vectors(G[i], A[i], w[i], body[j], arm[j], frame[j], value[j], rate[j], bias[j], blocks[j])
+            _vectors(G[i], A[i], w[i], body[j], arm[j], frame[j], value[j], rate[j], bias[j], blocks[j], scratch)
         for r in range(m):
             j = joint[r]
             v, g = value[j], 0.0
@@ -152,7 +151,9 @@ def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobi
                     if b >= 0:
                         S_rate += _inner(other[side], w[i, b])
                         C_rate += _inner(part[side], w[i, b])
-                part[:] = cos * other - sin * part
+                for side in range(2):
+                    for q in range(6):
+                        part[side, q] = cos * other[side, q] - sin * part[side, q]
                 dc, ds = -sin * speed, cos * speed
                 ddc, dds = -cos * speed ** 2 - sin * acc, -sin * speed ** 2 + cos * acc
                 phi[i, r] = cos * S - sin * C
@@ -163,5 +164,6 @@ def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobi
                 for side in range(2):
                     b = body[j, side]
                     if b >= 0:
-                        jac[i, r, 6 * b:6 * b + 6] += part[side]
+                        for q in range(6):
+                            jac[i, r, 6 * b + q] += part[side, q]
     return phi, jac, rhs, gamma

@@ -120,6 +120,45 @@ def _apply(A, piv, row, column, x, transposed):
 
 
 @numba.njit(cache=True, nogil=True)
+def _inverse_norm(A, piv, row, column, X):
+    """‖(Dr·J·Dc)⁻¹‖₁ from J's LU: X = J⁻¹ by solving J·X = I with all
+    right-hand sides at once, row by row (whole rows of X at a time:
+    contiguous, so compiled to vector instructions), skipping the zeros
+    of the sparse factors."""
+    n = len(piv)
+    X[:] = 0.0
+    for i in range(n):
+        X[i, i] = 1.0
+    for j in range(n):
+        p = piv[j]
+        if p != j:
+            for q in range(n):
+                X[j, q], X[p, q] = X[p, q], X[j, q]
+    for i in range(n):
+        for c in range(i):
+            f = A[i, c]
+            if f != 0.0:
+                for q in range(n):
+                    X[i, q] -= f * X[c, q]
+    for i in range(n - 1, -1, -1):
+        for c in range(i + 1, n):
+            f = A[i, c]
+            if f != 0.0:
+                for q in range(n):
+                    X[i, q] -= f * X[c, q]
+        d = A[i, i]
+        for q in range(n):
+            X[i, q] /= d
+    norm = 0.0
+    for q in range(n):
+        s = 0.0
+        for i in range(n):
+            s += abs(X[i, q]) / column[i]
+        norm = max(norm, s / row[q])
+    return norm
+
+
+@numba.njit(cache=True, nogil=True)
 def _condition(J: np.ndarray, lu: np.ndarray, piv: np.ndarray, row: np.ndarray, column: np.ndarray,
                estimate: bool) -> np.ndarray:
     """‖Dr·J·Dc‖₁ times ‖(Dr·J·Dc)⁻¹‖₁, per instant: exactly, column by
@@ -128,6 +167,7 @@ def _condition(J: np.ndarray, lu: np.ndarray, piv: np.ndarray, row: np.ndarray, 
     out = np.empty(N)
     x = np.empty(n)
     sign = np.empty(n)
+    X = np.empty((n, n))
     for k in range(N):
         norm = 0.0
         for c in range(n):
@@ -136,13 +176,7 @@ def _condition(J: np.ndarray, lu: np.ndarray, piv: np.ndarray, row: np.ndarray, 
                 s += abs(J[k, i, c] * row[i] * column[c])
             norm = max(norm, s)
         if not estimate:
-            inverse = 0.0
-            for c in range(n):
-                x[:] = 0.0
-                x[c] = 1.0
-                _apply(lu[k], piv[k], row, column, x, False)
-                inverse = max(inverse, np.abs(x).sum())
-            out[k] = norm * inverse
+            out[k] = norm * _inverse_norm(lu[k], piv[k], row, column, X)
             continue
         x[:] = 1.0 / n
         _apply(lu[k], piv[k], row, column, x, False)

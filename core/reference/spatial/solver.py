@@ -42,7 +42,7 @@ from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.resultants import resultant_columns
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
-from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, newton, structure
+from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept, kept_rows, newton, structure
 from mechval.reference.spatial.system import SpatialSystem
 
 CHUNK = 1 << 12
@@ -100,9 +100,9 @@ def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows
     idx = list(rows)
     nb = len(c.bodies)
     out = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))     # Φq and −Φt (γ is not needed at rest)
-    lu = LU(out["jac"][:, idx])
-    w = lu.solve(out["rhs"][:, idx]).reshape(len(t), nb, 6)
-    gamma = c.evaluate(pose, t, w, jacobian=False)["gamma"][:, idx]
+    lu = LU(kept(out["jac"], rows))
+    w = lu.solve(kept(out["rhs"], rows)).reshape(len(t), nb, 6)
+    gamma = kept(c.evaluate(pose, t, w, jacobian=False)["gamma"], rows)
     dw = lu.solve(gamma).reshape(len(t), nb, 6)
     Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
     lam = np.zeros((len(t), c.m))
@@ -253,7 +253,7 @@ class SpatialSolver:
         and the LU factors of `rows`' Jacobian at `pose` (Newton's first)."""
         J = self.c.evaluate(pose, t)["jac"]
         idx = list(rows)
-        lu = LU(J[:, idx])
+        lu = LU(kept(J, rows))
         poor = lu.condition(self.scaling.row[idx], self.scaling.column) > REPICK_CONDITION
         if not poor.any():
             return rows, poor, lu

@@ -68,6 +68,12 @@ class Scaling:
         return np.abs(dq / self.column).max(axis=1) if dq.shape[1] else np.zeros(len(dq))
 
 
+def kept(a: np.ndarray, rows: tuple[int, ...]) -> np.ndarray:
+    """a[:, rows]: no copy where the rows are all of a's, in order (no
+    redundant rows: the common case, and a copy of (N, m, n) costs)."""
+    return a if tuple(rows) == tuple(range(a.shape[1])) else a[:, list(rows)]
+
+
 def initial_pose(c: Constraints) -> Pose:
     bodies = c.system.bodies
     A = np.array([orthonormalised(np.asarray(b.rotation, dtype=float)) for b in bodies]).reshape(1, -1, 3, 3)
@@ -116,11 +122,10 @@ def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tu
             dq = -np.linalg.lstsq(Js, out["phi"][0] * scaling.row, rcond=None)[0] * scaling.column
             dq = dq[None]
         else:
-            idx = list(rows)
             if fresh:
-                lu = LU(out["jac"][:, idx])
+                lu = LU(kept(out["jac"], rows))
                 previous = np.full(len(pose), np.inf)      # the rate estimate starts over
-            dq = -lu.solve(out["phi"][:, idx])
+            dq = -lu.solve(kept(out["phi"], rows))
         size = scaling.step(dq)
         dq[done] = 0.0
         pose = moved(pose, dq)

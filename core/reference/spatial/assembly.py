@@ -27,14 +27,14 @@ SLOTS = ("xi", "yi", "zi", "xj", "yj", "zj", "d")
 D = 6
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _cross(a, b, out):
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _inner(a, b):
     """a·b of short vectors (numba's @ calls BLAS: slower at this size)."""
     s = 0.0
@@ -43,7 +43,7 @@ def _inner(a, b):
     return s
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _minus_skew(h, block, sign=1.0):
     """block[:, 3:] = −(sign·h)~ (δ(A·h') = δπ × h = −h̃·δπ)."""
     block[0, 4], block[0, 5] = sign * h[2], -sign * h[1]
@@ -88,7 +88,7 @@ def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks, scratch):
         _minus_skew(a, blocks[D, side], sign)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _dot(x, y, value, rate, bias, blocks, part):
     """x·y of slots x, y: its value and γ; its variation per end in part (2, 6)."""
     part[:] = 0.0

@@ -52,10 +52,12 @@ def _minus_skew(h, block, sign=1.0):
 
 
 @numba.njit(cache=True, nogil=True)
-def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks, scratch):
-    """The seven vectors of one joint at one instant (see the module)."""
+def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks, scratch, need_blocks, moving):
+    """The seven vectors of one joint at one instant (see the module);
+    rates and biases zero unless `moving`, blocks only if `need_blocks`."""
     a, turn, spin = scratch[0], scratch[1], scratch[2]
-    blocks[:] = 0.0
+    if need_blocks:
+        blocks[:] = 0.0
     rate[:] = 0.0
     bias[:] = 0.0
     value[D] = 0.0
@@ -70,29 +72,35 @@ def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks, scratch):
             for r in range(3):
                 value[slot, r] = A[b, r, 0] * frame[side, 0, k] + A[b, r, 1] * frame[side, 1, k] \
                     + A[b, r, 2] * frame[side, 2, k]
-            _cross(w[b, 3:], value[slot], rate[slot])
-            _cross(w[b, 3:], rate[slot], bias[slot])
-            _minus_skew(value[slot], blocks[slot, side])
+            if moving:
+                _cross(w[b, 3:], value[slot], rate[slot])
+                _cross(w[b, 3:], rate[slot], bias[slot])
+            if need_blocks:
+                _minus_skew(value[slot], blocks[slot, side])
         if b < 0:
             value[D] += sign * arm[side]
             continue
         for r in range(3):
             a[r] = A[b, r, 0] * arm[side, 0] + A[b, r, 1] * arm[side, 1] + A[b, r, 2] * arm[side, 2]
-        _cross(w[b, 3:], a, turn)
-        _cross(w[b, 3:], turn, spin)
         for r in range(3):
             value[D, r] += sign * (G[b, r] + a[r])
-            rate[D, r] += sign * (w[b, r] + turn[r])
-            bias[D, r] += sign * spin[r]
-            blocks[D, side, r, r] = sign
-        _minus_skew(a, blocks[D, side], sign)
+        if moving:
+            _cross(w[b, 3:], a, turn)
+            _cross(w[b, 3:], turn, spin)
+            for r in range(3):
+                rate[D, r] += sign * (w[b, r] + turn[r])
+                bias[D, r] += sign * spin[r]
+        if need_blocks:
+            for r in range(3):
+                blocks[D, side, r, r] = sign
+            _minus_skew(a, blocks[D, side], sign)
 
 
 @numba.njit(cache=True, nogil=True)
-def _dot(x, y, value, rate, bias, blocks, part):
-    """x·y of slots x, y: its value and γ; its variation per end in part (2, 6)."""
-    part[:] = 0.0
-    for side in range(2):
+def _dot(x, y, value, rate, bias, blocks, part, need_blocks):
+    """x·y of slots x, y: its value and γ; its variation per end in part
+    (2, 6) if `need_blocks`."""
+    for side in range(2 if need_blocks else 0):
         for q in range(6):
             s = 0.0
             for c in range(3):
@@ -104,8 +112,9 @@ def _dot(x, y, value, rate, bias, blocks, part):
 
 
 @numba.njit(cache=True, nogil=True)
-def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobian, n):
-    """Φ (N, m), Φq (N, m, n) (empty unless `jacobian`), −Φt and γ (N, m).
+def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobian, moving, n):
+    """Φ (N, m), Φq (N, m, n) (empty unless `jacobian`), −Φt and γ (N, m);
+    `moving` False: w is zero (the vectors' rates and biases are skipped).
 
     G (N, nb, 3), A (N, nb, 3, 3), w (N, nb, 6); law (N, drives, 3): each
     drive's φ, φ̇, φ̈; per joint body (J, 2) (−1: ground), arm (J, 2, 3),
@@ -117,23 +126,26 @@ def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobi
     jac = np.zeros((N, m, n) if jacobian else (0, m, n))
     value, rate, bias = np.empty((J, 7, 3)), np.empty((J, 7, 3)), np.empty((J, 7, 3))
     blocks = np.empty((J, 7, 2, 3, 6))
-    part, other, scratch = np.empty((2, 6)), np.empty((2, 6)), np.empty((3, 3))
+    part, other, scratch = np.zeros((2, 6)), np.zeros((2, 6)), np.empty((3, 3))
+    need_blocks = jacobian or moving       # a revolute drive's γ reads its rows' variations
     for i in range(N):
         for j in range(J):
-            _vectors(G[i], A[i], w[i], body[j], arm[j], frame[j], value[j], rate[j], bias[j], blocks[j], scratch)
+            _vectors(G[i], A[i], w[i], body[j], arm[j], frame[j], value[j], rate[j], bias[j], blocks[j], scratch,
+                     need_blocks, moving)
         for r in range(m):
             j = joint[r]
             v, g = value[j], 0.0
             if shape[r] == COMPONENT:
                 c = first[r]
                 phi[i, r] = v[D, c]
-                part[:] = blocks[j, D, :, c]
+                if need_blocks:
+                    part[:] = blocks[j, D, :, c]
                 g = -bias[j, D, c]
             elif shape[r] == DOT:
-                phi[i, r], g = _dot(first[r], second[r], v, rate[j], bias[j], blocks[j], part)
+                phi[i, r], g = _dot(first[r], second[r], v, rate[j], bias[j], blocks[j], part, need_blocks)
             elif shape[r] == PRISMATIC_DRIVE:
                 k = first[r]
-                s, g = _dot(2, D, v, rate[j], bias[j], blocks[j], part)
+                s, g = _dot(2, D, v, rate[j], bias[j], blocks[j], part, need_blocks)
                 phi[i, r] = s - law[i, k, 0]
                 g += law[i, k, 2]
                 rhs[i, r] = law[i, k, 1]
@@ -142,13 +154,13 @@ def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobi
                 # f̈ = c·S̈ − s·C̈ + 2(ċ·Ṡ − ṡ·Ċ) + c̈·S − s̈·C
                 k = first[r]
                 angle, speed, acc = law[i, k, 0], law[i, k, 1], law[i, k, 2]
-                S, S_gamma = _dot(1, 3, v, rate[j], bias[j], blocks[j], other)
-                C, C_gamma = _dot(0, 3, v, rate[j], bias[j], blocks[j], part)
+                S, S_gamma = _dot(1, 3, v, rate[j], bias[j], blocks[j], other, need_blocks)
+                C, C_gamma = _dot(0, 3, v, rate[j], bias[j], blocks[j], part, need_blocks)
                 cos, sin = np.cos(angle), np.sin(angle)
                 S_rate, C_rate = 0.0, 0.0
                 for side in range(2):
                     b = body[j, side]
-                    if b >= 0:
+                    if b >= 0 and moving:
                         S_rate += _inner(other[side], w[i, b])
                         C_rate += _inner(part[side], w[i, b])
                 for side in range(2):

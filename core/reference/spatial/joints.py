@@ -164,7 +164,7 @@ class Constraints:
         joint, shape, first, second = self.table_rows
         phi, jac, rhs, gamma = assembly.assemble(
             *(np.ascontiguousarray(x, dtype=float) for x in (pose.G, pose.A, velocities)), law,
-            *self.table_joints, shape, joint, first, second, jacobian, self.n)
+            *self.table_joints, shape, joint, first, second, jacobian, w is not None and bool(np.any(w)), self.n)
         out = dict(phi=phi)
         if jacobian:
             out["jac"] = jac

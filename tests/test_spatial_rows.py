@@ -104,3 +104,16 @@ def test_lu_refuses_a_singular_matrix():
     J[1, 2] = J[1, 1]
     with pytest.raises(np.linalg.LinAlgError):
         LU(J)
+
+
+@pytest.mark.parametrize("angle", [0.0, 3e-5, 0.3, 3.0])
+def test_the_compiled_group_update_is_rodrigues(angle):
+    """`chord`'s update A ← exp(φ̃)·A against `rotation.exp_map`, either
+    side of its series switch."""
+    from mechval.reference.spatial.chord import _turn
+    rng = np.random.default_rng(11)
+    phi = angle * frame_from_axis(rng.standard_normal(3))[:, 2]
+    A = exp_map(rng.standard_normal(3))
+    expected = exp_map(phi) @ A
+    _turn(phi, A, np.empty((3, 3)), np.empty((3, 3)))
+    assert np.abs(A - expected).max() <= 4 * np.finfo(float).eps

@@ -112,6 +112,73 @@ def _dot(x, y, value, rate, bias, blocks, part, need_blocks):
 
 
 @numba.njit(cache=True, nogil=True)
+def workspace(joints):
+    """Scratch arrays of `instant` for a system of `joints` joints."""
+    return (np.empty((joints, 7, 3)), np.empty((joints, 7, 3)), np.empty((joints, 7, 3)),
+            np.empty((joints, 7, 2, 3, 6)), np.zeros((2, 6)), np.zeros((2, 6)), np.empty((3, 3)))
+
+
+@numba.njit(cache=True, nogil=True)
+def instant(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobian, moving, phi, jac, rhs, gamma,
+            work):
+    """The rows at one instant into phi, rhs, gamma (m,) and, if
+    `jacobian`, added into jac (m, n) (zero it first); arguments as
+    `assemble`'s for that instant, `work` from `workspace`."""
+    value, rate, bias, blocks, part, other, scratch = work
+    m = len(shape)
+    need_blocks = jacobian or moving       # a revolute drive's γ reads its rows' variations
+    for j in range(len(body)):
+        _vectors(G, A, w, body[j], arm[j], frame[j], value[j], rate[j], bias[j], blocks[j], scratch,
+                 need_blocks, moving)
+    for r in range(m):
+        j = joint[r]
+        v, g = value[j], 0.0
+        if shape[r] == COMPONENT:
+            c = first[r]
+            phi[r] = v[D, c]
+            if need_blocks:
+                part[:] = blocks[j, D, :, c]
+            g = -bias[j, D, c]
+        elif shape[r] == DOT:
+            phi[r], g = _dot(first[r], second[r], v, rate[j], bias[j], blocks[j], part, need_blocks)
+        elif shape[r] == PRISMATIC_DRIVE:
+            k = first[r]
+            s, g = _dot(2, D, v, rate[j], bias[j], blocks[j], part, need_blocks)
+            phi[r] = s - law[k, 0]
+            g += law[k, 2]
+            rhs[r] = law[k, 1]
+        else:
+            # f = c·S − s·C, S = yi·xj = sin θ, C = xi·xj = cos θ, c, s = cos φ, sin φ;
+            # f̈ = c·S̈ − s·C̈ + 2(ċ·Ṡ − ṡ·Ċ) + c̈·S − s̈·C
+            k = first[r]
+            angle, speed, acc = law[k, 0], law[k, 1], law[k, 2]
+            S, S_gamma = _dot(1, 3, v, rate[j], bias[j], blocks[j], other, need_blocks)
+            C, C_gamma = _dot(0, 3, v, rate[j], bias[j], blocks[j], part, need_blocks)
+            cos, sin = np.cos(angle), np.sin(angle)
+            S_rate, C_rate = 0.0, 0.0
+            for side in range(2):
+                b = body[j, side]
+                if b >= 0 and moving:
+                    S_rate += _inner(other[side], w[b])
+                    C_rate += _inner(part[side], w[b])
+            for side in range(2):
+                for q in range(6):
+                    part[side, q] = cos * other[side, q] - sin * part[side, q]
+            dc, ds = -sin * speed, cos * speed
+            ddc, dds = -cos * speed ** 2 - sin * acc, -sin * speed ** 2 + cos * acc
+            phi[r] = cos * S - sin * C
+            g = cos * S_gamma - sin * C_gamma - 2 * (dc * S_rate - ds * C_rate) - ddc * S + dds * C
+            rhs[r] = -(dc * S - ds * C)
+        gamma[r] = g
+        if jacobian:
+            for side in range(2):
+                b = body[j, side]
+                if b >= 0:
+                    for q in range(6):
+                        jac[r, 6 * b + q] += part[side, q]
+
+
+@numba.njit(cache=True, nogil=True)
 def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobian, moving, n):
     """Φ (N, m), Φq (N, m, n) (empty unless `jacobian`), −Φt and γ (N, m);
     `moving` False: w is zero (the vectors' rates and biases are skipped).
@@ -121,61 +188,11 @@ def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobi
     frame (J, 2, 3, 3); per row its shape, joint, and first, second: the
     slots of a DOT, the component of a COMPONENT, the drive of a drive.
     """
-    N, m, J = G.shape[0], len(shape), len(body)
+    N, m = G.shape[0], len(shape)
     phi, rhs, gamma = np.zeros((N, m)), np.zeros((N, m)), np.zeros((N, m))
-    jac = np.zeros((N, m, n) if jacobian else (0, m, n))
-    value, rate, bias = np.empty((J, 7, 3)), np.empty((J, 7, 3)), np.empty((J, 7, 3))
-    blocks = np.empty((J, 7, 2, 3, 6))
-    part, other, scratch = np.zeros((2, 6)), np.zeros((2, 6)), np.empty((3, 3))
-    need_blocks = jacobian or moving       # a revolute drive's γ reads its rows' variations
+    jac = np.zeros((N, m, n) if jacobian else (N, 0, 0))
+    work = workspace(len(body))
     for i in range(N):
-        for j in range(J):
-            _vectors(G[i], A[i], w[i], body[j], arm[j], frame[j], value[j], rate[j], bias[j], blocks[j], scratch,
-                     need_blocks, moving)
-        for r in range(m):
-            j = joint[r]
-            v, g = value[j], 0.0
-            if shape[r] == COMPONENT:
-                c = first[r]
-                phi[i, r] = v[D, c]
-                if need_blocks:
-                    part[:] = blocks[j, D, :, c]
-                g = -bias[j, D, c]
-            elif shape[r] == DOT:
-                phi[i, r], g = _dot(first[r], second[r], v, rate[j], bias[j], blocks[j], part, need_blocks)
-            elif shape[r] == PRISMATIC_DRIVE:
-                k = first[r]
-                s, g = _dot(2, D, v, rate[j], bias[j], blocks[j], part, need_blocks)
-                phi[i, r] = s - law[i, k, 0]
-                g += law[i, k, 2]
-                rhs[i, r] = law[i, k, 1]
-            else:
-                # f = c·S − s·C, S = yi·xj = sin θ, C = xi·xj = cos θ, c, s = cos φ, sin φ;
-                # f̈ = c·S̈ − s·C̈ + 2(ċ·Ṡ − ṡ·Ċ) + c̈·S − s̈·C
-                k = first[r]
-                angle, speed, acc = law[i, k, 0], law[i, k, 1], law[i, k, 2]
-                S, S_gamma = _dot(1, 3, v, rate[j], bias[j], blocks[j], other, need_blocks)
-                C, C_gamma = _dot(0, 3, v, rate[j], bias[j], blocks[j], part, need_blocks)
-                cos, sin = np.cos(angle), np.sin(angle)
-                S_rate, C_rate = 0.0, 0.0
-                for side in range(2):
-                    b = body[j, side]
-                    if b >= 0 and moving:
-                        S_rate += _inner(other[side], w[i, b])
-                        C_rate += _inner(part[side], w[i, b])
-                for side in range(2):
-                    for q in range(6):
-                        part[side, q] = cos * other[side, q] - sin * part[side, q]
-                dc, ds = -sin * speed, cos * speed
-                ddc, dds = -cos * speed ** 2 - sin * acc, -sin * speed ** 2 + cos * acc
-                phi[i, r] = cos * S - sin * C
-                g = cos * S_gamma - sin * C_gamma - 2 * (dc * S_rate - ds * C_rate) - ddc * S + dds * C
-                rhs[i, r] = -(dc * S - ds * C)
-            gamma[i, r] = g
-            if jacobian:
-                for side in range(2):
-                    b = body[j, side]
-                    if b >= 0:
-                        for q in range(6):
-                            jac[i, r, 6 * b + q] += part[side, q]
+        instant(G[i], A[i], w[i], law[i], body, arm, frame, shape, joint, first, second, jacobian, moving,
+                phi[i], jac[i], rhs[i], gamma[i], work)
     return phi, jac, rhs, gamma

@@ -152,14 +152,19 @@ class Constraints:
 
     # -- rows -----------------------------------------------------------------------------------
 
+    def laws(self, t: np.ndarray) -> np.ndarray:
+        """Each drive's φ, φ̇, φ̈ at instants t, (N, drives, 3)."""
+        law = np.empty((len(t), len(self.system.drives), 3))
+        for k, d in enumerate(self.system.drives):
+            law[:, k] = np.stack([d.law.angle(t) + 0 * t, d.law.rate(t) + 0 * t, d.law.acceleration(t) + 0 * t], -1)
+        return law
+
     def evaluate(self, pose: Pose, t: np.ndarray, w: np.ndarray | None = None,
                  jacobian: bool = True) -> dict[str, np.ndarray]:
         """Φ (N, m) and Φq (N, m, n) (unless not `jacobian`); with
         velocities w (N, nb, 6) also −Φt and γ (N, m)."""
         N = len(pose)
-        law = np.empty((N, len(self.system.drives), 3))
-        for k, d in enumerate(self.system.drives):
-            law[:, k] = np.stack([d.law.angle(t) + 0 * t, d.law.rate(t) + 0 * t, d.law.acceleration(t) + 0 * t], -1)
+        law = self.laws(t)
         velocities = np.zeros((N, len(self.bodies), 6)) if w is None else w
         joint, shape, first, second = self.table_rows
         phi, jac, rhs, gamma = assembly.assemble(

@@ -42,7 +42,9 @@ from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.resultants import resultant_columns
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
-from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept, kept_rows, newton, structure
+from mechval.reference.spatial import chord
+from mechval.reference.spatial.structure import (CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION, Scaling, Structure,
+                                                 initial_pose, kept, kept_rows, newton, refuse_unclosed, structure)
 from mechval.reference.spatial.system import SpatialSystem
 
 CHUNK = 1 << 12
@@ -208,14 +210,19 @@ class SpatialSolver:
                 mask = which == k
                 guess = predict(nodes[k], tt[mask])
                 predicted.G[mask], predicted.A[mask] = guess.G, guess.A
-            better, poor, lu = self.rows_at(predicted, tt, rows, found)
-            if better != rows:     # near a pose where these rows turn singular: the poor instants get others
+            pose, poor, done, residual = self.positions(predicted, tt, rows)
+            better = rows
+            if poor.any():         # near a pose where these rows turn singular: the poor instants get others
+                k = int(np.argmax(poor))
+                J = self.c.evaluate(Pose(predicted.G[k:k + 1], predicted.A[k:k + 1]), tt[k:k + 1])["jac"][0]
+                better = kept_rows(self.c, self.scaling.jacobian(J), self.c.n - found.mobility)
+            if better != rows:
                 flags = group(index[poor], which[poor], better)
                 if poor.all():
                     return flags
                 keep = ~poor
                 return flags | group(index[keep], which[keep], rows)
-            pose = newton(self.c, self.scaling, predicted, tt, rows, where="batch", lu=lu)
+            refuse_unclosed(done, residual, tt, "batch", self.scaling.size)
             jump = self.scaling.step(flat_difference(pose, predicted))
             if jump.max() > BRANCH_JUMP:
                 k = int(np.argmax(jump))
@@ -244,6 +251,18 @@ class SpatialSolver:
                  "redundant_constraints": found.redundant, "condition_max": float(condition.max()),
                  "continuation_nodes": len(nodes)}
         return SpatialSolution(frame, missing, found, facts, condition)
+
+    def positions(self, predicted: Pose, t: np.ndarray, rows: tuple[int, ...]) -> tuple[Pose, np.ndarray, ...]:
+        """`rows_at` and `newton` for a batch, per instant in compiled code
+        (`chord`): the solved poses, which instants' rows are poor at the
+        prediction, which settled, and their closing residuals."""
+        c, law = self.c, self.c.laws(t)
+        joint, shape, first, second = c.table_rows
+        G, A, poor, done, residual = chord.positions(
+            np.ascontiguousarray(predicted.G), np.ascontiguousarray(predicted.A), law, *c.table_joints, shape, joint,
+            first, second, np.array(rows, dtype=np.int64), self.scaling.row, self.scaling.column,
+            REPICK_CONDITION, CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION)
+        return Pose(G, A), poor, done, residual
 
     def rows_at(self, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
                 found: Structure) -> tuple[tuple[int, ...], np.ndarray, LU]:

@@ -134,12 +134,17 @@ def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tu
             break
         previous = size
     residual = np.abs(c.evaluate(pose, t, jacobian=False)["phi"] * scaling.row).max(axis=1)
+    refuse_unclosed(done, residual, t, where, scaling.size)
+    return pose
+
+
+def refuse_unclosed(done: np.ndarray, residual: np.ndarray, t: np.ndarray, where: str, size: float) -> None:
+    """Raise where Newton did not settle or the loop did not close."""
     if not done.all() or residual.max() > CLOSED:
         k = int(np.argmax(np.where(done, residual, np.inf)))
         raise MechanismError("joint" if where == "assembly" else "time",
                              f"the loop cannot close at t = {t[k]:.6g} s ({where}): Newton ends with a scaled "
-                             f"residual {residual[k]:.3g} (size {scaling.size:.3g} m)")
-    return pose
+                             f"residual {residual[k]:.3g} (size {size:.3g} m)")
 
 
 def _rank(M: np.ndarray) -> int:

@@ -178,6 +178,13 @@ class LU:
         if not _factor(self.lu, self.piv):
             raise np.linalg.LinAlgError("Singular matrix")
 
+    @classmethod
+    def from_factors(cls, lu: np.ndarray, piv: np.ndarray) -> "LU":
+        """The factors computed elsewhere (`motion`); no `condition` then."""
+        self = cls.__new__(cls)
+        self.matrix, self.lu, self.piv = None, lu, piv
+        return self
+
     def solve(self, b: np.ndarray) -> np.ndarray:
         """J⁻¹·b per instant, b (N, n)."""
         return _solve(self.lu, self.piv, np.ascontiguousarray(b, dtype=float), False)

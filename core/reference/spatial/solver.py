@@ -42,7 +42,7 @@ from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.resultants import resultant_columns
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
-from mechval.reference.spatial import chord
+from mechval.reference.spatial import chord, motion
 from mechval.reference.spatial.structure import (CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION, Scaling, Structure,
                                                  initial_pose, kept, kept_rows, newton, refuse_unclosed, structure)
 from mechval.reference.spatial.system import SpatialSystem
@@ -89,27 +89,33 @@ class State:
     dw: np.ndarray
     lam: np.ndarray
     jac: np.ndarray
-    #: The rows its square solves kept, and their Jacobian's LU factors.
+    #: The rows its square solves kept, their Jacobian's LU factors and
+    #: its scaled 1-norm condition per instant.
     rows: tuple[int, ...] = ()
     lu: LU | None = None
+    condition: np.ndarray | None = None
 
 
 def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
-          extra: np.ndarray | None = None) -> State:
+          scaling: Scaling, extra: np.ndarray | None = None) -> State:
     """Velocities, accelerations and multipliers at solved positions by the
-    kept rows' Jacobian, factorised once for the three solves (and for its
-    condition); `extra`: Q on top of the applied forces."""
+    kept rows' Jacobian, factorised once per instant for the three solves
+    and its condition (`motion`, compiled); `extra`: Q on top of the
+    applied forces."""
     idx = list(rows)
     nb = len(c.bodies)
-    out = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))     # Φq and −Φt (γ is not needed at rest)
-    lu = LU(kept(out["jac"], rows))
-    w = lu.solve(kept(out["rhs"], rows)).reshape(len(t), nb, 6)
-    gamma = kept(c.evaluate(pose, t, w, jacobian=False)["gamma"], rows)
-    dw = lu.solve(gamma).reshape(len(t), nb, 6)
+    joint, shape, first, second = c.table_rows
+    jac, factors, piv, w, dw, condition, regular = motion.velocities(
+        np.ascontiguousarray(pose.G), np.ascontiguousarray(pose.A), c.laws(t), *c.table_joints, shape, joint, first,
+        second, np.array(rows, dtype=np.int64), scaling.row, scaling.column)
+    if not regular:
+        raise np.linalg.LinAlgError("Singular matrix")
+    lu = LU.from_factors(factors, piv)
+    w, dw = w.reshape(len(t), nb, 6), dw.reshape(len(t), nb, 6)
     Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
     lam = np.zeros((len(t), c.m))
     lam[:, idx] = lu.solve_transposed(Q - mass_times(c.system, pose, dw))
-    return State(t, pose, w, dw, lam, out["jac"], tuple(rows), lu)
+    return State(t, pose, w, dw, lam, jac, tuple(rows), lu, condition)
 
 
 class SpatialSolver:
@@ -142,7 +148,7 @@ class SpatialSolver:
         """Solved nodes from t0 to t_end, steps halved where a prediction
         misses and grown where it is close."""
         rows = found.independent
-        nodes = [rates(self.c, self.forces, pose, np.array([t0]), rows)]
+        nodes = [rates(self.c, self.forces, pose, np.array([t0]), rows, self.scaling)]
         h = (t_end - t0) / 16 if t_end > t0 else 0.0
         while nodes[-1].t[0] < t_end:
             last = nodes[-1]
@@ -166,7 +172,7 @@ class SpatialSolver:
             if jump > NODE_JUMP and not shortest:
                 h = step / 2
                 continue
-            nodes.append(rates(self.c, self.forces, solved, t, rows))
+            nodes.append(rates(self.c, self.forces, solved, t, rows, self.scaling))
             if jump < NODE_JUMP / 10:
                 h = step * 1.5
         return nodes
@@ -228,8 +234,8 @@ class SpatialSolver:
                 k = int(np.argmax(jump))
                 raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
                                              "the continuation's prediction: a branch point or near-singular position")
-            state = rates(self.c, self.forces, pose, tt, rows)
-            condition[index] = state.lu.condition(self.scaling.row[list(rows)], self.scaling.column)
+            state = rates(self.c, self.forces, pose, tt, rows, self.scaling)
+            condition[index] = state.condition
             table[0, index] = tt
             table[1:, index] = self._columns(state)
             if found.redundant:    # −Φqᵀ·λ per body: unique however λ is split

@@ -1,22 +1,22 @@
-"""The batch's positions, one instant at a time in compiled code: the
-kept rows' Jacobian at the prediction, its LU and condition (are these
-rows poor there?), then chord Newton to the fixed point, exactly as
-`structure.newton` does for a batch with the same LU (fresh every CHORD
-iterations, the same `settled` test), and the closing residual.
-
-Numpy's version of the same steps passes every (N, m, n) array through
-memory several times; here each instant's Jacobian and factors stay in
-the cache. The continuation's nodes and the assembly keep
-`structure.newton` (one instant, or least squares).
+"""The batch's positions and rates, instant after instant in compiled
+code: chord Newton from the continuation's prediction, exactly as
+`structure.newton` iterates (the same CHORD refresh and `settled` test)
+but with the previous instant's factors at its solution as the chord
+matrix (instants ~1e-5 of a turn apart: as good as a fresh Jacobian at
+the prediction, and computed anyway for that instant's rates), then
+`motion.solved` at the solution: one Jacobian, one LU and one condition
+per instant instead of two of each, and no (N, m, n) array passing
+through memory between the steps. The continuation's nodes and the
+assembly keep `structure.newton` (one instant, or least squares).
 """
-
 from __future__ import annotations
 
 import numba
 import numpy as np
 
-from mechval.reference.spatial.assembly import instant, workspace
+from mechval.reference.spatial.assembly import instant
 from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one
+from mechval.reference.spatial.motion import solved, workspace_of
 
 #: exp_map's switch to its series (`rotation.exp_map`).
 SERIES = 1e-4
@@ -46,51 +46,61 @@ def _turn(phi, A, R, out):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def positions(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_all, column, repick, chord,
-              iterations, rounding, stagnation):
-    """Newton from predicted poses G (N, nb, 3), A (N, nb, 3, 3) (copies
-    returned solved), with the kept `rows`; the row scales of all rows
-    (row_all) and the column scales. Returns G, A, poor (condition at the
-    prediction above `repick`, or singular), done, and each instant's
-    closing residual (scaled, every row)."""
+def march(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_all, column, follows, repick, chord,
+          iterations, rounding, stagnation):
+    """Newton from predicted poses G (N, nb, 3), A (N, nb, 3, 3), instant
+    after instant, with the kept `rows`; row_all, column: the scales. The
+    chord matrix of an instant is the LU at the previous instant's
+    solution (`motion.solved`, computed there anyway for the rates) where
+    the instant `follows` it in the run, else a fresh one at the
+    prediction (and afresh from the prediction where Newton fails with
+    the previous one); fresh again every `chord` iterations. Returns the solved
+    G, A; poor (the rows' condition at the previous solution, or at the
+    prediction, above `repick`; or singular); done; each closing residual
+    (scaled, every row); and `motion.velocities`' outputs at the solutions."""
     N, nb = G.shape[0], G.shape[1]
     m, n = len(shape), 6 * nb
+    predicted_G, predicted_A = G, A
     G, A = G.copy(), A.copy()
     poor, done, residual = np.zeros(N, np.bool_), np.zeros(N, np.bool_), np.full(N, np.inf)
-    work = workspace(len(body))
-    phi, rhs, gamma = np.empty(m), np.empty(m), np.empty(m)
-    jac = np.empty((m, n))
-    lu, piv = np.empty((1, n, n)), np.empty((1, n), np.int64)
-    rest, dq, X = np.zeros((nb, 6)), np.empty(n), np.empty((n, n))
+    jac, lu, piv = np.empty((N, m, n)), np.empty((N, n, n)), np.empty((N, n), np.int64)
+    w, dw, condition = np.zeros((N, n)), np.zeros((N, n)), np.full(N, np.inf)
+    scratch = workspace_of(len(body), m, n)
+    work, phi, rhs, gamma, rest, none, X = scratch
+    chord_lu, chord_piv, newton_jac = np.empty((1, n, n)), np.empty((1, n), np.int64), np.empty((m, n))
+    dq, R, out = np.empty(n), np.empty((3, 3)), np.empty((3, 3))
     row = row_all[rows]
-    R, out = np.empty((3, 3)), np.empty((3, 3))
-    for i in range(N):
+    have = False
+    i, retried = 0, False
+    while i < N:
+        have = have and follows[i]
         previous = np.inf
         for it in range(iterations):
-            fresh = it % chord == 0
+            fresh = it % chord == 0 and not (it == 0 and have)
             if fresh:
-                jac[:] = 0.0
+                newton_jac[:] = 0.0
             instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, fresh, False,
-                    phi, jac, rhs, gamma, work)
+                    phi, newton_jac, rhs, gamma, work)
             if fresh:
                 for a in range(n):
-                    lu[0, a] = jac[rows[a]]
+                    chord_lu[0, a] = newton_jac[rows[a]]
                 norm = 0.0
-                if it == 0:
-                    for c in range(n):
-                        s = 0.0
-                        for a in range(n):
-                            s += abs(lu[0, a, c] * row[a] * column[c])
-                        norm = max(norm, s)
-                if not _factor(lu, piv):
+                for c in range(n):
+                    s = 0.0
+                    for a in range(n):
+                        s += abs(chord_lu[0, a, c] * row[a] * column[c])
+                    norm = max(norm, s)
+                if not _factor(chord_lu, chord_piv):
                     poor[i] = True
                     break
                 if it == 0:
-                    poor[i] = norm * _inverse_norm(lu[0], piv[0], row, column, X) > repick
+                    poor[i] = norm * _inverse_norm(chord_lu[0], chord_piv[0], row, column, X) > repick
                 previous = np.inf          # the rate estimate starts over
+            elif it == 0:
+                poor[i] = condition[i - 1] > repick
             for a in range(n):
                 dq[a] = -phi[rows[a]]
-            _solve_one(lu[0], piv[0], dq)
+            _solve_one(chord_lu[0], chord_piv[0], dq)
             size = 0.0
             for a in range(n):
                 size = max(size, abs(dq[a] / column[a]))
@@ -105,10 +115,24 @@ def positions(G, A, law, body, arm, frame, shape, joint, first, second, rows, ro
                 done[i] = True
                 break
             previous = size
+        if not done[i] and have and not retried:
+            G[i], A[i] = predicted_G[i], predicted_A[i]
+            have, retried, poor[i] = False, True, False
+            continue
+        retried = False
         instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, False, False,
-                phi, jac, rhs, gamma, work)
+                phi, none, rhs, gamma, work)
         worst = 0.0
         for r in range(m):
             worst = max(worst, abs(phi[r] * row_all[r]))
         residual[i] = worst
-    return G, A, poor, done, residual
+        have = False
+        if done[i]:
+            condition[i] = solved(G[i], A[i], law[i], body, arm, frame, shape, joint, first, second, rows, row,
+                                  column, jac[i], lu[i:i + 1], piv[i:i + 1], w[i], dw[i], scratch)
+            if np.isfinite(condition[i]):
+                chord_lu[:] = lu[i:i + 1]
+                chord_piv[:] = piv[i:i + 1]
+                have = True
+        i += 1
+    return G, A, poor, done, residual, jac, lu, piv, w, dw, condition

@@ -19,41 +19,58 @@ from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one
 
 
 @numba.njit(cache=True, nogil=True)
+def solved(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, column, jac, lu, piv, w, dw,
+           scratch):
+    """At one solved instant: Φq into jac (m, n), zeroed here; the kept
+    rows' LU into lu (1, n, n), piv (1, n); w, ẇ (n,); returns the scaled
+    condition (inf where the LU is singular). `scratch` from `workspace_of`."""
+    work, phi, rhs, gamma, rest, none, X = scratch
+    n = len(rows)
+    nb = n // 6
+    jac[:] = 0.0
+    rhs[:] = 0.0
+    instant(G, A, rest, law, body, arm, frame, shape, joint, first, second, True, False, phi, jac, rhs, gamma, work)
+    norm = 0.0
+    for a in range(n):
+        lu[0, a] = jac[rows[a]]
+    for c in range(n):
+        s = 0.0
+        for a in range(n):
+            s += abs(lu[0, a, c] * row[a] * column[c])
+        norm = max(norm, s)
+    if not _factor(lu, piv):
+        return np.inf
+    for a in range(n):
+        w[a] = rhs[rows[a]]
+    _solve_one(lu[0], piv[0], w)
+    instant(G, A, w.reshape((nb, 6)), law, body, arm, frame, shape, joint, first, second, False, True,
+            phi, none, rhs, gamma, work)
+    for a in range(n):
+        dw[a] = gamma[rows[a]]
+    _solve_one(lu[0], piv[0], dw)
+    return norm * _inverse_norm(lu[0], piv[0], row, column, X)
+
+
+@numba.njit(cache=True, nogil=True)
+def workspace_of(joints, m, n):
+    """The scratch arrays `solved` uses."""
+    return (workspace(joints), np.empty(m), np.empty(m), np.empty(m), np.zeros((n // 6, 6)), np.empty((0, 0)),
+            np.empty((n, n)))
+
+
+@numba.njit(cache=True, nogil=True)
 def velocities(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_all, column):
-    """Returns Φq (N, m, n), the kept rows' LU and pivots (N, n, n), (N, n),
-    w and ẇ (N, n), the scaled condition (N,) and whether every LU is regular."""
+    """`solved` at N instants: Φq (N, m, n), the kept rows' LU and pivots
+    (N, n, n), (N, n), w and ẇ (N, n), the scaled condition (N,) (inf:
+    singular)."""
     N, nb = G.shape[0], G.shape[1]
     m, n = len(shape), 6 * nb
-    jac = np.zeros((N, m, n))
+    jac = np.empty((N, m, n))
     lu, piv = np.empty((N, n, n)), np.empty((N, n), np.int64)
     w, dw, condition = np.empty((N, n)), np.empty((N, n)), np.empty(N)
-    work = workspace(len(body))
-    phi, rhs, gamma = np.empty(m), np.empty(m), np.empty(m)
-    rest, none, X = np.zeros((nb, 6)), np.empty((0, 0)), np.empty((n, n))
+    scratch = workspace_of(len(body), m, n)
     row = row_all[rows]
-    regular = True
     for i in range(N):
-        rhs[:] = 0.0
-        instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, True, False,
-                phi, jac[i], rhs, gamma, work)
-        norm = 0.0
-        for a in range(n):
-            lu[i, a] = jac[i, rows[a]]
-        for c in range(n):
-            s = 0.0
-            for a in range(n):
-                s += abs(lu[i, a, c] * row[a] * column[c])
-            norm = max(norm, s)
-        if not _factor(lu[i:i + 1], piv[i:i + 1]):
-            regular = False
-            continue
-        for a in range(n):
-            w[i, a] = rhs[rows[a]]
-        _solve_one(lu[i], piv[i], w[i])
-        instant(G[i], A[i], w[i].reshape((nb, 6)), law[i], body, arm, frame, shape, joint, first, second, False,
-                True, phi, none, rhs, gamma, work)
-        for a in range(n):
-            dw[i, a] = gamma[rows[a]]
-        _solve_one(lu[i], piv[i], dw[i])
-        condition[i] = norm * _inverse_norm(lu[i], piv[i], row, column, X)
-    return jac, lu, piv, w, dw, condition, regular
+        condition[i] = solved(G[i], A[i], law[i], body, arm, frame, shape, joint, first, second, rows, row, column,
+                              jac[i], lu[i:i + 1], piv[i:i + 1], w[i], dw[i], scratch)
+    return jac, lu, piv, w, dw, condition

@@ -102,19 +102,26 @@ def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows
     kept rows' Jacobian, factorised once per instant for the three solves
     and its condition (`motion`, compiled); `extra`: Q on top of the
     applied forces."""
-    idx = list(rows)
-    nb = len(c.bodies)
     joint, shape, first, second = c.table_rows
-    jac, factors, piv, w, dw, condition, regular = motion.velocities(
+    jac, factors, piv, w, dw, condition = motion.velocities(
         np.ascontiguousarray(pose.G), np.ascontiguousarray(pose.A), c.laws(t), *c.table_joints, shape, joint, first,
         second, np.array(rows, dtype=np.int64), scaling.row, scaling.column)
-    if not regular:
+    return multipliers(c, forces, pose, t, rows, jac, factors, piv, w, dw, condition, extra)
+
+
+def multipliers(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
+                jac: np.ndarray, factors: np.ndarray, piv: np.ndarray, w: np.ndarray, dw: np.ndarray,
+                condition: np.ndarray, extra: np.ndarray | None = None) -> State:
+    """The State from `motion`'s outputs: λ from M·ẇ + Φqᵀ·λ = Q by the
+    kept rows' factors, transposed."""
+    if not np.isfinite(condition).all():
         raise np.linalg.LinAlgError("Singular matrix")
+    nb = len(c.bodies)
     lu = LU.from_factors(factors, piv)
     w, dw = w.reshape(len(t), nb, 6), dw.reshape(len(t), nb, 6)
     Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
     lam = np.zeros((len(t), c.m))
-    lam[:, idx] = lu.solve_transposed(Q - mass_times(c.system, pose, dw))
+    lam[:, list(rows)] = lu.solve_transposed(Q - mass_times(c.system, pose, dw))
     return State(t, pose, w, dw, lam, jac, tuple(rows), lu, condition)
 
 
@@ -216,7 +223,7 @@ class SpatialSolver:
                 mask = which == k
                 guess = predict(nodes[k], tt[mask])
                 predicted.G[mask], predicted.A[mask] = guess.G, guess.A
-            pose, poor, done, residual = self.positions(predicted, tt, rows)
+            pose, poor, done, residual, *solved = self.march(predicted, tt, rows, index)
             better = rows
             if poor.any():         # near a pose where these rows turn singular: the poor instants get others
                 k = int(np.argmax(poor))
@@ -234,7 +241,7 @@ class SpatialSolver:
                 k = int(np.argmax(jump))
                 raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
                                              "the continuation's prediction: a branch point or near-singular position")
-            state = rates(self.c, self.forces, pose, tt, rows, self.scaling)
+            state = multipliers(self.c, self.forces, pose, tt, rows, *solved)
             condition[index] = state.condition
             table[0, index] = tt
             table[1:, index] = self._columns(state)
@@ -258,17 +265,20 @@ class SpatialSolver:
                  "continuation_nodes": len(nodes)}
         return SpatialSolution(frame, missing, found, facts, condition)
 
-    def positions(self, predicted: Pose, t: np.ndarray, rows: tuple[int, ...]) -> tuple[Pose, np.ndarray, ...]:
-        """`rows_at` and `newton` for a batch, per instant in compiled code
-        (`chord`): the solved poses, which instants' rows are poor at the
-        prediction, which settled, and their closing residuals."""
-        c, law = self.c, self.c.laws(t)
+    def march(self, predicted: Pose, t: np.ndarray, rows: tuple[int, ...], index: np.ndarray) -> tuple:
+        """Positions and rates of a batch instant after instant (`chord`):
+        the solved poses, which instants' rows are poor, which settled,
+        their closing residuals, and `motion.velocities`' outputs. `index`:
+        the instants' places in the run (an instant follows the one before
+        it in the run, or is solved afresh)."""
+        c = self.c
         joint, shape, first, second = c.table_rows
-        G, A, poor, done, residual = chord.positions(
-            np.ascontiguousarray(predicted.G), np.ascontiguousarray(predicted.A), law, *c.table_joints, shape, joint,
-            first, second, np.array(rows, dtype=np.int64), self.scaling.row, self.scaling.column,
+        follows = np.concatenate([[False], np.diff(index) == 1])
+        G, A, *rest = chord.march(
+            np.ascontiguousarray(predicted.G), np.ascontiguousarray(predicted.A), c.laws(t), *c.table_joints, shape,
+            joint, first, second, np.array(rows, dtype=np.int64), self.scaling.row, self.scaling.column, follows,
             REPICK_CONDITION, CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION)
-        return Pose(G, A), poor, done, residual
+        return Pose(G, A), *rest
 
     def rows_at(self, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
                 found: Structure) -> tuple[tuple[int, ...], np.ndarray, LU]:

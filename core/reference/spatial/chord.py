@@ -120,19 +120,20 @@ def march(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_al
             have, retried, poor[i] = False, True, False
             continue
         retried = False
-        instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, False, False,
-                phi, none, rhs, gamma, work)
-        worst = 0.0
-        for r in range(m):
-            worst = max(worst, abs(phi[r] * row_all[r]))
-        residual[i] = worst
         have = False
-        if done[i]:
+        if done[i]:     # the rates; Φ at the solution is left in phi
             condition[i] = solved(G[i], A[i], law[i], body, arm, frame, shape, joint, first, second, rows, row,
                                   column, jac[i], lu[i:i + 1], piv[i:i + 1], w[i], dw[i], scratch)
             if np.isfinite(condition[i]):
                 chord_lu[:] = lu[i:i + 1]
                 chord_piv[:] = piv[i:i + 1]
                 have = True
+        else:
+            instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, False, False,
+                    phi, none, rhs, gamma, work)
+        worst = 0.0
+        for r in range(m):
+            worst = max(worst, abs(phi[r] * row_all[r]))
+        residual[i] = worst
         i += 1
     return G, A, poor, done, residual, jac, lu, piv, w, dw, condition

@@ -22,8 +22,9 @@ from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one
 def solved(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, column, jac, lu, piv, w, dw,
            scratch):
     """At one solved instant: Φq into jac (m, n), zeroed here; the kept
-    rows' LU into lu (1, n, n), piv (1, n); w, ẇ (n,); returns the scaled
-    condition (inf where the LU is singular). `scratch` from `workspace_of`."""
+    rows' LU into lu (1, n, n), piv (1, n); w, ẇ (n,); Φ into scratch's
+    phi; returns the scaled condition (inf where the LU is singular).
+    `scratch` from `workspace_of`."""
     work, phi, rhs, gamma, rest, none, X = scratch
     n = len(rows)
     nb = n // 6

@@ -25,6 +25,12 @@ COMPONENT, DOT, REVOLUTE_DRIVE, PRISMATIC_DRIVE = 0, 1, 2, 3
 #: Vector slots of a joint: its frames' axes, then d = Pj − Pi.
 SLOTS = ("xi", "yi", "zi", "xj", "yj", "zj", "d")
 D = 6
+#: Flags and slots as elements of global arrays: numba types those as
+#: runtime values, where a literal True or 2 in a call compiles the
+#: callee once more per value (measured: five copies of `instant`, eight
+#: of `_dot`, a cold compile of 37 s of CPU).
+NO, YES = np.zeros(1, dtype=np.bool_), np.ones(1, dtype=np.bool_)
+SLOT = np.arange(7)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -44,7 +50,7 @@ def _inner(a, b):
 
 
 @numba.njit(cache=True, nogil=True)
-def _minus_skew(h, block, sign=1.0):
+def _minus_skew(h, block, sign):
     """block[:, 3:] = −(sign·h)~ (δ(A·h') = δπ × h = −h̃·δπ)."""
     block[0, 4], block[0, 5] = sign * h[2], -sign * h[1]
     block[1, 3], block[1, 5] = -sign * h[2], sign * h[0]
@@ -76,7 +82,7 @@ def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks, scratch, need
                 _cross(w[b, 3:], value[slot], rate[slot])
                 _cross(w[b, 3:], rate[slot], bias[slot])
             if need_blocks:
-                _minus_skew(value[slot], blocks[slot, side])
+                _minus_skew(value[slot], blocks[slot, side], 1.0)
         if b < 0:
             value[D] += sign * arm[side]
             continue
@@ -143,7 +149,7 @@ def instant(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobia
             phi[r], g = _dot(first[r], second[r], v, rate[j], bias[j], blocks[j], part, need_blocks)
         elif shape[r] == PRISMATIC_DRIVE:
             k = first[r]
-            s, g = _dot(2, D, v, rate[j], bias[j], blocks[j], part, need_blocks)
+            s, g = _dot(SLOT[2], SLOT[D], v, rate[j], bias[j], blocks[j], part, need_blocks)
             phi[r] = s - law[k, 0]
             g += law[k, 2]
             rhs[r] = law[k, 1]
@@ -152,8 +158,8 @@ def instant(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobia
             # f̈ = c·S̈ − s·C̈ + 2(ċ·Ṡ − ṡ·Ċ) + c̈·S − s̈·C
             k = first[r]
             angle, speed, acc = law[k, 0], law[k, 1], law[k, 2]
-            S, S_gamma = _dot(1, 3, v, rate[j], bias[j], blocks[j], other, need_blocks)
-            C, C_gamma = _dot(0, 3, v, rate[j], bias[j], blocks[j], part, need_blocks)
+            S, S_gamma = _dot(SLOT[1], SLOT[3], v, rate[j], bias[j], blocks[j], other, need_blocks)
+            C, C_gamma = _dot(SLOT[0], SLOT[3], v, rate[j], bias[j], blocks[j], part, need_blocks)
             cos, sin = np.cos(angle), np.sin(angle)
             S_rate, C_rate = 0.0, 0.0
             for side in range(2):

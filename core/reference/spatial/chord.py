@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mechval.reference.spatial.assembly import instant
+from mechval.reference.spatial.assembly import NO, YES, instant
 from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one
 from mechval.reference.spatial.motion import solved, workspace_of
 
@@ -79,7 +79,7 @@ def march(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_al
             fresh = it % chord == 0 and not (it == 0 and have)
             if fresh:
                 newton_jac[:] = 0.0
-            instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, fresh, False,
+            instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, fresh, NO[0],
                     phi, newton_jac, rhs, gamma, work)
             if fresh:
                 for a in range(n):
@@ -129,7 +129,7 @@ def march(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_al
                 chord_piv[:] = piv[i:i + 1]
                 have = True
         else:
-            instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, False, False,
+            instant(G[i], A[i], rest, law[i], body, arm, frame, shape, joint, first, second, NO[0], NO[0],
                     phi, none, rhs, gamma, work)
         worst = 0.0
         for r in range(m):

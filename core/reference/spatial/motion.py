@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mechval.reference.spatial.assembly import instant, workspace
+from mechval.reference.spatial.assembly import NO, YES, instant, workspace
 from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one
 
 
@@ -30,7 +30,7 @@ def solved(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, 
     nb = n // 6
     jac[:] = 0.0
     rhs[:] = 0.0
-    instant(G, A, rest, law, body, arm, frame, shape, joint, first, second, True, False, phi, jac, rhs, gamma, work)
+    instant(G, A, rest, law, body, arm, frame, shape, joint, first, second, YES[0], NO[0], phi, jac, rhs, gamma, work)
     norm = 0.0
     for a in range(n):
         lu[0, a] = jac[rows[a]]
@@ -44,7 +44,7 @@ def solved(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, 
     for a in range(n):
         w[a] = rhs[rows[a]]
     _solve_one(lu[0], piv[0], w)
-    instant(G, A, w.reshape((nb, 6)), law, body, arm, frame, shape, joint, first, second, False, True,
+    instant(G, A, w.reshape((nb, 6)), law, body, arm, frame, shape, joint, first, second, NO[0], YES[0],
             phi, none, rhs, gamma, work)
     for a in range(n):
         dw[a] = gamma[rows[a]]

@@ -15,7 +15,7 @@ import numba
 import numpy as np
 
 from mechval.reference.spatial.assembly import NO, YES, instant
-from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one
+from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one, norm1
 from mechval.reference.spatial.motion import solved, workspace_of
 
 #: exp_map's switch to its series (`rotation.exp_map`).
@@ -56,7 +56,8 @@ def march(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_al
     prediction (and afresh from the prediction where Newton fails with
     the previous one); fresh again every `chord` iterations. Returns the solved
     G, A; poor (the rows' condition at the previous solution, or at the
-    prediction, above `repick`; or singular); done; each closing residual
+    prediction, or at the instant's own solution above `repick`; or
+    singular); done; each closing residual
     (scaled, every row); and `motion.velocities`' outputs at the solutions."""
     N, nb = G.shape[0], G.shape[1]
     m, n = len(shape), 6 * nb
@@ -84,12 +85,7 @@ def march(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_al
             if fresh:
                 for a in range(n):
                     chord_lu[0, a] = newton_jac[rows[a]]
-                norm = 0.0
-                for c in range(n):
-                    s = 0.0
-                    for a in range(n):
-                        s += abs(chord_lu[0, a, c] * row[a] * column[c])
-                    norm = max(norm, s)
+                norm = norm1(chord_lu[0], row, column, dq)      # dq: scratch until solved for
                 if not _factor(chord_lu, chord_piv):
                     poor[i] = True
                     break
@@ -124,6 +120,7 @@ def march(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_al
         if done[i]:     # the rates; Φ at the solution is left in phi
             condition[i] = solved(G[i], A[i], law[i], body, arm, frame, shape, joint, first, second, rows, row,
                                   column, jac[i], lu[i:i + 1], piv[i:i + 1], w[i], dw[i], scratch)
+            poor[i] = poor[i] or condition[i] > repick
             if np.isfinite(condition[i]):
                 chord_lu[:] = lu[i:i + 1]
                 chord_piv[:] = piv[i:i + 1]

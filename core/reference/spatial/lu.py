@@ -143,13 +143,27 @@ def _inverse_norm(A, piv, row, column, X):
         d = A[i, i]
         for q in range(n):
             X[i, q] /= d
+    sums = X[0]                    # row by row: contiguous; each column summed in row order still
+    for q in range(n):
+        sums[q] = abs(sums[q]) / column[0]
+    for i in range(1, n):
+        for q in range(n):
+            sums[q] += abs(X[i, q]) / column[i]
     norm = 0.0
     for q in range(n):
-        s = 0.0
-        for i in range(n):
-            s += abs(X[i, q]) / column[i]
-        norm = max(norm, s / row[q])
+        norm = max(norm, sums[q] / row[q])
     return norm
+
+
+@numba.njit(cache=True, nogil=True)
+def norm1(M, row, column, sums):
+    """‖Dr·M·Dc‖₁, D = diag(row), diag(column); `sums` (n,) scratch. Row by
+    row (contiguous), each column summed in row order."""
+    sums[:] = 0.0
+    for i in range(M.shape[0]):
+        for c in range(M.shape[1]):
+            sums[c] += abs(M[i, c] * row[i] * column[c])
+    return sums.max()
 
 
 @numba.njit(cache=True, nogil=True)
@@ -160,11 +174,7 @@ def _condition(J: np.ndarray, lu: np.ndarray, piv: np.ndarray, row: np.ndarray, 
     X = np.empty((n, n))
     sums = np.empty(n)
     for k in range(N):
-        sums[:] = 0.0
-        for i in range(n):
-            for c in range(n):
-                sums[c] += abs(J[k, i, c] * row[i] * column[c])
-        out[k] = sums.max() * _inverse_norm(lu[k], piv[k], row, column, X)
+        out[k] = norm1(J[k], row, column, sums) * _inverse_norm(lu[k], piv[k], row, column, X)
     return out
 
 

@@ -15,7 +15,7 @@ import numba
 import numpy as np
 
 from mechval.reference.spatial.assembly import NO, YES, instant, workspace
-from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one
+from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one, norm1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -31,14 +31,9 @@ def solved(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, 
     jac[:] = 0.0
     rhs[:] = 0.0
     instant(G, A, rest, law, body, arm, frame, shape, joint, first, second, YES[0], NO[0], phi, jac, rhs, gamma, work)
-    norm = 0.0
     for a in range(n):
         lu[0, a] = jac[rows[a]]
-    for c in range(n):
-        s = 0.0
-        for a in range(n):
-            s += abs(lu[0, a, c] * row[a] * column[c])
-        norm = max(norm, s)
+    norm = norm1(lu[0], row, column, w)      # w: scratch until solved for
     if not _factor(lu, piv):
         return np.inf
     for a in range(n):

@@ -47,7 +47,10 @@ from mechval.reference.spatial.structure import (CHORD, NEWTON_ITERATIONS, ROUND
                                                  initial_pose, kept, kept_rows, newton, refuse_unclosed, structure)
 from mechval.reference.spatial.system import SpatialSystem
 
-CHUNK = 1 << 12
+#: Instants per batch: a batch's Jacobians and factors (28 KB an instant
+#: for the delta robot) are read back by the multipliers and reactions,
+#: nearer the cache in smaller batches (tests/bench/spatial_bench.py).
+CHUNK = 1 << 10
 #: See `mechval.reference.planar.solver.UNIQUE_TOL`.
 UNIQUE_TOL = 1e-8
 #: Continuation: a node's prediction may miss its solution by this much

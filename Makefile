@@ -10,6 +10,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
 	$(VENV)/bin/python -m pip install --quiet -e ".[test]"
+	# the spatial reference's numba kernels, compiled once into numba's cache (~20 s of CPU)
+	$(VENV)/bin/python -m mechval.reference.spatial.warm
 	touch $(STAMP)
 
 setup: $(STAMP)

@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from mechval.model.mechanism import GROUND
-from mechval.reference.spatial.rotation import cross, skew
+from mechval.reference.spatial import assembly
+from mechval.reference.spatial.rotation import cross
 from mechval.reference.spatial.system import SpatialSystem
 
 ROW_NAMES = {
@@ -63,48 +64,24 @@ class Pose:
 
 
 class Vec:
-    """A world vector carried by bodies, over N instants: value, its
-    variation per body (N, 3, 6) blocks, rate and bias (see the module)."""
+    """A world vector carried by a body, over N instants: value, and with
+    velocities its rate and bias (see the module)."""
 
-    def __init__(self, value, parts, rate=None, bias=None):
-        self.value, self.parts, self.rate, self.bias = value, parts, rate, bias
-
-    def __sub__(self, other: "Vec") -> "Vec":
-        parts = dict(self.parts)
-        for b, block in other.parts.items():
-            parts[b] = parts[b] - block if b in parts else -block
-        rate = None if self.rate is None or other.rate is None else self.rate - other.rate
-        bias = None if self.bias is None or other.bias is None else self.bias - other.bias
-        return Vec(self.value - other.value, parts, rate, bias)
-
-
-class Axes:
-    """The three axes of a joint frame on one body, each computed on first use."""
-
-    def __init__(self, c: "Constraints", pose, w, body: int, frame: np.ndarray, blocks: bool = True):
-        self.args, self.frame, self.cache, self.blocks = (pose, w, body), frame, {}, blocks
-        self.c = c
-
-    def __getitem__(self, k: int) -> Vec:
-        if k not in self.cache:
-            pose, w, body = self.args
-            self.cache[k] = self.c.axis(pose, w, body, self.frame[:, k], self.blocks)
-        return self.cache[k]
-
-    def lazy(self, k: int) -> "Lazy":
-        return Lazy(self, k)
-
-
-class Lazy:
-    def __init__(self, axes: Axes, k: int):
-        self.axes, self.k = axes, k
-
-    def get(self) -> Vec:
-        return self.axes[self.k]
+    def __init__(self, value, rate=None, bias=None):
+        self.value, self.rate, self.bias = value, rate, bias
 
 
 def _dot(x, y):
     return np.einsum("ni,ni->n", x, y)
+
+
+def encode(name: str) -> tuple[int, int, int]:
+    """A row name of ROW_NAMES as (shape, first, second) for `assembly`:
+    "dx" the component 0 of d, "xi.zj" the dot product of slots xi and zj."""
+    if "." in name:
+        x, y = name.split(".")
+        return assembly.DOT, assembly.SLOTS.index(x), assembly.SLOTS.index(y)
+    return assembly.COMPONENT, "xyz".index(name[1]), 0
 
 
 class Constraints:
@@ -132,131 +109,72 @@ class Constraints:
             rows.append(Row("drive", d.joint, d.name))
         self.rows = tuple(rows)
         self.m = len(rows)
+        # the table `assembly` evaluates: per joint its ends, per row its shape
+        joint_number = {j.name: k for k, j in enumerate(system.joints)}
+        self.table_joints = (
+            np.array([[self.ends[j.name][0], self.ends[j.name][2]] for j in system.joints], dtype=np.int64).reshape(-1, 2),
+            np.array([[self.ends[j.name][1], self.ends[j.name][3]] for j in system.joints], dtype=float).reshape(-1, 2, 3),
+            np.array([[j.frame_i, j.frame_j] for j in system.joints], dtype=float).reshape(-1, 2, 3, 3))
+        drive_number = {d.name: k for k, d in enumerate(system.drives)}
+        encoded = [encode(r.kind) if r.kind != "drive" else
+                   (assembly.PRISMATIC_DRIVE if system.joint(r.joint).kind == "prismatic" else assembly.REVOLUTE_DRIVE,
+                    drive_number[r.drive], 0) for r in rows]
+        self.table_rows = (np.array([joint_number[r.joint] for r in rows], dtype=np.int64),
+                           *(np.array([e[k] for e in encoded], dtype=np.int64) for k in range(3)))
 
     # -- body vectors ---------------------------------------------------------------------------
 
-    def axis(self, pose: Pose, w: np.ndarray | None, body: int, h_body: np.ndarray, blocks: bool = True) -> Vec:
+    def axis(self, pose: Pose, w: np.ndarray | None, body: int, h_body: np.ndarray) -> Vec:
+        """The world axis A·h' of a body (the ground: h' itself)."""
         N = len(pose)
         if body < 0:
             zero = None if w is None else np.zeros((N, 3))
-            return Vec(np.broadcast_to(h_body, (N, 3)), {}, zero, zero)
+            return Vec(np.broadcast_to(h_body, (N, 3)), zero, zero)
         h = pose.A[:, body] @ h_body
-        if blocks:
-            block = np.zeros((N, 3, 6))
-            block[:, :, 3:] = -skew(h)
-        parts = {body: block} if blocks else {}
         if w is None:
-            return Vec(h, parts)
+            return Vec(h)
         om = w[:, body, 3:]
         rate = cross(om, h)
-        return Vec(h, parts, rate, cross(om, rate))
+        return Vec(h, rate, cross(om, rate))
 
-    def point(self, pose: Pose, w: np.ndarray | None, body: int, s: np.ndarray, blocks: bool = True) -> Vec:
+    def point(self, pose: Pose, w: np.ndarray | None, body: int, s: np.ndarray) -> Vec:
+        """The world point G + A·s of a body (the ground: s itself)."""
         N = len(pose)
         if body < 0:
             zero = None if w is None else np.zeros((N, 3))
-            return Vec(np.broadcast_to(s, (N, 3)), {}, zero, zero)
+            return Vec(np.broadcast_to(s, (N, 3)), zero, zero)
         a = pose.A[:, body] @ s
-        parts = {}
-        if blocks:
-            block = np.zeros((N, 3, 6))
-            block[:, :, :3] = np.eye(3)
-            block[:, :, 3:] = -skew(a)
-            parts = {body: block}
         if w is None:
-            return Vec(pose.G[:, body] + a, parts)
+            return Vec(pose.G[:, body] + a)
         om = w[:, body, 3:]
         turn = cross(om, a)
-        return Vec(pose.G[:, body] + a, parts, w[:, body, :3] + turn, cross(om, turn))
+        return Vec(pose.G[:, body] + a, w[:, body, :3] + turn, cross(om, turn))
 
     # -- rows -----------------------------------------------------------------------------------
+
+    def laws(self, t: np.ndarray) -> np.ndarray:
+        """Each drive's φ, φ̇, φ̈ at instants t, (N, drives, 3)."""
+        law = np.empty((len(t), len(self.system.drives), 3))
+        for k, d in enumerate(self.system.drives):
+            law[:, k] = np.stack([d.law.angle(t) + 0 * t, d.law.rate(t) + 0 * t, d.law.acceleration(t) + 0 * t], -1)
+        return law
 
     def evaluate(self, pose: Pose, t: np.ndarray, w: np.ndarray | None = None,
                  jacobian: bool = True) -> dict[str, np.ndarray]:
         """Φ (N, m) and Φq (N, m, n) (unless not `jacobian`); with
         velocities w (N, nb, 6) also −Φt and γ (N, m)."""
-        N, m = len(pose), self.m
-        out = dict(phi=np.zeros((N, m)))
+        N = len(pose)
+        law = self.laws(t)
+        velocities = np.zeros((N, len(self.bodies), 6)) if w is None else w
+        joint, shape, first, second = self.table_rows
+        phi, jac, rhs, gamma = assembly.assemble(
+            *(np.ascontiguousarray(x, dtype=float) for x in (pose.G, pose.A, velocities)), law,
+            *self.table_joints, shape, joint, first, second, jacobian, w is not None and bool(np.any(w)), self.n)
+        out = dict(phi=phi)
         if jacobian:
-            out["jac"] = np.zeros((N, m, self.n))
+            out["jac"] = jac
         if w is not None:
-            out.update(rhs=np.zeros((N, m)), gamma=np.zeros((N, m)))
-        rows = iter(range(m))
-
-        def put(row: int, value, parts, gamma=None):
-            out["phi"][:, row] = value
-            for b, block in parts.items() if jacobian else ():
-                out["jac"][:, row, 6 * b:6 * b + 6] += block
-            if w is not None:
-                out["gamma"][:, row] = gamma
-
-        def vector(v: Vec):
-            for c in range(3):
-                put(next(rows), v.value[:, c], {b: blk[:, c] for b, blk in v.parts.items()},
-                    None if w is None else -v.bias[:, c])
-
-        def dot(x: Vec, y: Vec, coefficient: float | np.ndarray = 1.0, row: int | None = None):
-            value = _dot(x.value, y.value)
-            parts: dict[int, np.ndarray] = {}
-            for first, second in ((x, y), (y, x)):
-                for b, blk in first.parts.items():
-                    term = np.einsum("ni,nij->nj", second.value, blk)
-                    parts[b] = parts[b] + term if b in parts else term
-            gamma = None
-            if w is not None:
-                gamma = -(_dot(x.bias, y.value) + 2 * _dot(x.rate, y.rate) + _dot(x.value, y.bias))
-            return value, parts, gamma
-
-        def scalar(x: Lazy | Vec, y: Lazy | Vec):
-            put(next(rows), *dot(*(v.get() if isinstance(v, Lazy) else v for v in (x, y))))
-
-        frames = {}
-        for j in self.system.joints:
-            bi, si, bj, sj = self.ends[j.name]
-            ax_i, ax_j = Axes(self, pose, w, bi, j.frame_i, jacobian), Axes(self, pose, w, bj, j.frame_j, jacobian)
-            d = self.point(pose, w, bj, sj, jacobian) - self.point(pose, w, bi, si, jacobian)
-            frames[j.name] = (ax_i, ax_j, d)
-            xi, yi, zi = (ax_i.lazy(k) for k in range(3))
-            xj, yj, zj = (ax_j.lazy(k) for k in range(3))
-            if j.kind in ("spherical", "revolute", "universal", "fixed"):
-                vector(d)
-            if j.kind == "universal":
-                scalar(zi, zj)
-            if j.kind in ("revolute", "cylindrical", "prismatic", "planar", "fixed"):
-                scalar(xi, zj), scalar(yi, zj)
-            if j.kind in ("cylindrical", "prismatic"):
-                scalar(xi, d), scalar(yi, d)
-            if j.kind == "planar":
-                scalar(zi, d)
-            if j.kind in ("prismatic", "fixed"):
-                scalar(xi, yj)
-        for drive in self.system.drives:
-            row = next(rows)
-            ax_i, ax_j, d = frames[drive.joint]
-            law = drive.law
-            phi, rate, acc = law.angle(t) + 0 * t, law.rate(t) + 0 * t, law.acceleration(t) + 0 * t
-            if self.system.joint(drive.joint).kind == "prismatic":
-                value, parts, gamma = dot(ax_i[2], d)
-                put(row, value - phi, parts, None if w is None else gamma + acc)
-                if w is not None:
-                    out["rhs"][:, row] = rate
-                continue
-            # f = c·S − s·C with S = yi·xj = sin θ, C = xi·xj = cos θ, c, s = cos φ, sin φ
-            S, S_parts, S_gamma = dot(ax_i[1], ax_j[0])
-            C, C_parts, C_gamma = dot(ax_i[0], ax_j[0])
-            c, s = np.cos(phi), np.sin(phi)
-            parts = {b: c[:, None] * S_parts.get(b, 0) - s[:, None] * C_parts.get(b, 0)
-                     for b in set(S_parts) | set(C_parts)}
-            gamma = None
-            if w is not None:
-                # f̈ = c·S̈ − s·C̈ + 2(ċ·Ṡ − ṡ·Ċ) + c̈·S − s̈·C, with Ṡ, Ċ = rates
-                S_rate = sum(np.einsum("nj,nj->n", blk, w[:, b]) for b, blk in S_parts.items()) if S_parts else 0 * t
-                C_rate = sum(np.einsum("nj,nj->n", blk, w[:, b]) for b, blk in C_parts.items()) if C_parts else 0 * t
-                dc, ds = -s * rate, c * rate
-                ddc, dds = -c * rate ** 2 - s * acc, -s * rate ** 2 + c * acc
-                gamma = c * S_gamma - s * C_gamma - 2 * (dc * S_rate - ds * C_rate) - ddc * S + dds * C
-                out["rhs"][:, row] = -(dc * S - ds * C)
-            put(row, c * S - s * C, parts, gamma)
+            out.update(rhs=rhs, gamma=gamma)
         return out
 
     def drive_angles(self, pose: Pose) -> dict[str, np.ndarray]:

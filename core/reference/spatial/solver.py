@@ -39,12 +39,18 @@ import pandas as pd
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.forces import AppliedForces, mass_times
 from mechval.reference.spatial.joints import Constraints, Pose
+from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.resultants import resultant_columns
 from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
-from mechval.reference.spatial.structure import Scaling, Structure, initial_pose, kept_rows, newton, structure
+from mechval.reference.spatial import chord, motion
+from mechval.reference.spatial.structure import (CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION, Scaling, Structure,
+                                                 initial_pose, kept, kept_rows, newton, refuse_unclosed, structure)
 from mechval.reference.spatial.system import SpatialSystem
 
-CHUNK = 1 << 12
+#: Instants per batch: a batch's Jacobians and factors (28 KB an instant
+#: for the delta robot) are read back by the multipliers and reactions,
+#: nearer the cache in smaller batches (tests/bench/spatial_bench.py).
+CHUNK = 1 << 10
 #: See `mechval.reference.planar.solver.UNIQUE_TOL`.
 UNIQUE_TOL = 1e-8
 #: Continuation: a node's prediction may miss its solution by this much
@@ -86,27 +92,40 @@ class State:
     dw: np.ndarray
     lam: np.ndarray
     jac: np.ndarray
-    #: The rows its square solves kept, and their Jacobian's inverse.
+    #: The rows its square solves kept, their Jacobian's LU factors and
+    #: its scaled 1-norm condition per instant.
     rows: tuple[int, ...] = ()
-    inverse: np.ndarray | None = None
+    lu: LU | None = None
+    condition: np.ndarray | None = None
 
 
 def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
-          extra: np.ndarray | None = None) -> State:
+          scaling: Scaling, extra: np.ndarray | None = None) -> State:
     """Velocities, accelerations and multipliers at solved positions by the
-    kept rows' Jacobian, inverted once for the three solves (and for its
-    condition); `extra`: Q on top of the applied forces."""
-    idx = list(rows)
+    kept rows' Jacobian, factorised once per instant for the three solves
+    and its condition (`motion`, compiled); `extra`: Q on top of the
+    applied forces."""
+    joint, shape, first, second = c.table_rows
+    jac, factors, piv, w, dw, condition = motion.velocities(
+        np.ascontiguousarray(pose.G), np.ascontiguousarray(pose.A), c.laws(t), *c.table_joints, shape, joint, first,
+        second, np.array(rows, dtype=np.int64), scaling.row, scaling.column)
+    return multipliers(c, forces, pose, t, rows, jac, factors, piv, w, dw, condition, extra)
+
+
+def multipliers(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
+                jac: np.ndarray, factors: np.ndarray, piv: np.ndarray, w: np.ndarray, dw: np.ndarray,
+                condition: np.ndarray, extra: np.ndarray | None = None) -> State:
+    """The State from `motion`'s outputs: λ from M·ẇ + Φqᵀ·λ = Q by the
+    kept rows' factors, transposed."""
+    if not np.isfinite(condition).all():
+        raise np.linalg.LinAlgError("Singular matrix")
     nb = len(c.bodies)
-    out = c.evaluate(pose, t, np.zeros((len(t), nb, 6)))     # Φq and −Φt (γ is not needed at rest)
-    inverse = np.linalg.inv(out["jac"][:, idx])
-    w = np.einsum("nij,nj->ni", inverse, out["rhs"][:, idx]).reshape(len(t), nb, 6)
-    gamma = c.evaluate(pose, t, w, jacobian=False)["gamma"][:, idx]
-    dw = np.einsum("nij,nj->ni", inverse, gamma).reshape(len(t), nb, 6)
+    lu = LU.from_factors(factors, piv)
+    w, dw = w.reshape(len(t), nb, 6), dw.reshape(len(t), nb, 6)
     Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
     lam = np.zeros((len(t), c.m))
-    lam[:, idx] = np.einsum("nji,nj->ni", inverse, Q - mass_times(c.system, pose, dw))
-    return State(t, pose, w, dw, lam, out["jac"], tuple(rows), inverse)
+    lam[:, list(rows)] = lu.solve_transposed(Q - mass_times(c.system, pose, dw))
+    return State(t, pose, w, dw, lam, jac, tuple(rows), lu, condition)
 
 
 class SpatialSolver:
@@ -139,7 +158,7 @@ class SpatialSolver:
         """Solved nodes from t0 to t_end, steps halved where a prediction
         misses and grown where it is close."""
         rows = found.independent
-        nodes = [rates(self.c, self.forces, pose, np.array([t0]), rows)]
+        nodes = [rates(self.c, self.forces, pose, np.array([t0]), rows, self.scaling)]
         h = (t_end - t0) / 16 if t_end > t0 else 0.0
         while nodes[-1].t[0] < t_end:
             last = nodes[-1]
@@ -151,9 +170,9 @@ class SpatialSolver:
             predicted = predict(last, t)
             shortest = step <= 1e-9 * max(1.0, abs(t_end - t0))
             try:
-                rows, _, inverse = self.rows_at(predicted, t, last.rows, found)
+                rows, _, lu = self.rows_at(predicted, t, last.rows, found)
                 solved = newton(self.c, self.scaling, predicted, t, rows, where="continuation",
-                                inverse=inverse if rows == last.rows else None)
+                                lu=lu if rows == last.rows else None)
             except MechanismError:
                 if shortest:
                     raise
@@ -163,7 +182,7 @@ class SpatialSolver:
             if jump > NODE_JUMP and not shortest:
                 h = step / 2
                 continue
-            nodes.append(rates(self.c, self.forces, solved, t, rows))
+            nodes.append(rates(self.c, self.forces, solved, t, rows, self.scaling))
             if jump < NODE_JUMP / 10:
                 h = step * 1.5
         return nodes
@@ -210,23 +229,26 @@ class SpatialSolver:
                 mask = which == k
                 guess = predict(nodes[k], tt[mask])
                 predicted.G[mask], predicted.A[mask] = guess.G, guess.A
-            better, poor, inverse = self.rows_at(predicted, tt, rows, found)
-            if better != rows:     # near a pose where these rows turn singular: the poor instants get others
+            pose, poor, done, residual, *solved = self.march(predicted, tt, rows, index)
+            better = rows
+            if poor.any():         # near a pose where these rows turn singular: the poor instants get others
+                k = int(np.argmax(poor))
+                J = self.c.evaluate(Pose(predicted.G[k:k + 1], predicted.A[k:k + 1]), tt[k:k + 1])["jac"][0]
+                better = kept_rows(self.c, self.scaling.jacobian(J), self.c.n - found.mobility)
+            if better != rows:
                 flags = group(index[poor], which[poor], better)
                 if poor.all():
                     return flags
                 keep = ~poor
                 return flags | group(index[keep], which[keep], rows)
-            pose = newton(self.c, self.scaling, predicted, tt, rows, where="batch", inverse=inverse)
+            refuse_unclosed(done, residual, tt, "batch", self.scaling.size)
             jump = self.scaling.step(flat_difference(pose, predicted))
             if jump.max() > BRANCH_JUMP:
                 k = int(np.argmax(jump))
                 raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
                                              "the continuation's prediction: a branch point or near-singular position")
-            state = rates(self.c, self.forces, pose, tt, rows)
-            row, column = self.scaling.row[list(rows)], self.scaling.column
-            condition[index] = condition_1(state.jac[:, list(rows)] * row[:, None] * column,
-                                           state.inverse / column[:, None] / row)
+            state = multipliers(self.c, self.forces, pose, tt, rows, *solved)
+            condition[index] = state.condition
             table[0, index] = tt
             table[1:, index] = self._columns(state)
             if found.redundant and reactions:    # −Φqᵀ·λ per body: unique however λ is split
@@ -250,21 +272,35 @@ class SpatialSolver:
                  "continuation_nodes": len(nodes)}
         return SpatialSolution(frame, missing, found, facts, condition)
 
+    def march(self, predicted: Pose, t: np.ndarray, rows: tuple[int, ...], index: np.ndarray) -> tuple:
+        """Positions and rates of a batch instant after instant (`chord`):
+        the solved poses, which instants' rows are poor, which settled,
+        their closing residuals, and `motion.velocities`' outputs. `index`:
+        the instants' places in the run (an instant follows the one before
+        it in the run, or is solved afresh)."""
+        c = self.c
+        joint, shape, first, second = c.table_rows
+        follows = np.concatenate([[False], np.diff(index) == 1])
+        G, A, *rest = chord.march(
+            np.ascontiguousarray(predicted.G), np.ascontiguousarray(predicted.A), c.laws(t), *c.table_joints, shape,
+            joint, first, second, np.array(rows, dtype=np.int64), self.scaling.row, self.scaling.column, follows,
+            REPICK_CONDITION, CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION)
+        return Pose(G, A), *rest
+
     def rows_at(self, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
-                found: Structure) -> tuple[tuple[int, ...], np.ndarray, np.ndarray]:
+                found: Structure) -> tuple[tuple[int, ...], np.ndarray, LU]:
         """Rows to keep near `pose`: `rows`, unless their scaled Jacobian's
         condition exceeds REPICK_CONDITION at some instant, then rows
         picked afresh at the first such instant; which instants those are;
-        and the inverse of `rows`' Jacobian at `pose` (Newton's first)."""
+        and the LU factors of `rows`' Jacobian at `pose` (Newton's first)."""
         J = self.c.evaluate(pose, t)["jac"]
         idx = list(rows)
-        inverse = np.linalg.inv(J[:, idx])
-        row, column = self.scaling.row[idx], self.scaling.column
-        poor = condition_1(J[:, idx] * row[:, None] * column, inverse / column[:, None] / row) > REPICK_CONDITION
+        lu = LU(kept(J, rows))
+        poor = lu.condition(self.scaling.row[idx], self.scaling.column) > REPICK_CONDITION
         if not poor.any():
-            return rows, poor, inverse
+            return rows, poor, lu
         k = int(np.argmax(poor))
-        return kept_rows(self.c, self.scaling.jacobian(J[k]), self.c.n - found.mobility), poor, inverse
+        return kept_rows(self.c, self.scaling.jacobian(J[k]), self.c.n - found.mobility), poor, lu
 
     # -- columns ------------------------------------------------------------------------------
 
@@ -349,14 +385,6 @@ class SpatialSolver:
             flags |= (reached > UNIQUE_TOL * reached.max(axis=0, keepdims=True)).any(axis=1)
         motion = len(self.system.motion_columns())
         return np.concatenate([np.zeros(motion, dtype=bool), flags])
-
-
-def condition_1(J: np.ndarray, inverse: np.ndarray | None = None) -> np.ndarray:
-    """‖J‖₁·‖J⁻¹‖₁ per instant: the 1-norm condition number, by one batched
-    LU inverse unless given (an SVD per instant costs several times more);
-    within a factor n of the 2-norm one."""
-    norm = lambda M: np.abs(M).sum(axis=-2).max(axis=-1)     # noqa: E731
-    return norm(J) * norm(np.linalg.inv(J) if inverse is None else inverse)
 
 
 def predict(node: State, t: np.ndarray) -> Pose:

@@ -17,6 +17,7 @@ from scipy.linalg import qr
 
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.joints import Constraints, Pose
+from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.rotation import exp_map, orthonormalised
 
 #: A singular value of the scaled Jacobian below this fraction of the
@@ -67,6 +68,12 @@ class Scaling:
         return np.abs(dq / self.column).max(axis=1) if dq.shape[1] else np.zeros(len(dq))
 
 
+def kept(a: np.ndarray, rows: tuple[int, ...]) -> np.ndarray:
+    """a[:, rows]: no copy where the rows are all of a's, in order (no
+    redundant rows: the common case, and a copy of (N, m, n) costs)."""
+    return a if tuple(rows) == tuple(range(a.shape[1])) else a[:, list(rows)]
+
+
 def initial_pose(c: Constraints) -> Pose:
     bodies = c.system.bodies
     A = np.array([orthonormalised(np.asarray(b.rotation, dtype=float)) for b in bodies]).reshape(1, -1, 3, 3)
@@ -93,33 +100,32 @@ def settled(size: np.ndarray, previous: np.ndarray) -> np.ndarray:
 
 
 def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tuple[int, ...] | None,
-           where: str = "assembly", inverse: np.ndarray | None = None) -> Pose:
+           where: str = "assembly", lu: LU | None = None) -> Pose:
     """Newton on Φ(q, t) = 0 to the fixed point. With `rows` (as many as
     coordinates) each step solves those rows squarely, all instants at
     once; without, one instant by least squares on all rows (the
     minimum-norm step: assembly, redundant or not). Raises MechanismError
-    where it does not settle or the loop does not close. `inverse`: the
-    kept rows' Jacobian inverted at `pose`, if at hand."""
+    where it does not settle or the loop does not close. `lu`: the kept
+    rows' Jacobian factorised at `pose`, if at hand."""
     if not c.m:      # free bodies: nothing to close
         return pose
     previous = np.full(len(pose), np.inf)
     done = np.zeros(len(pose), dtype=bool)
     for it in range(NEWTON_ITERATIONS):
-        # batches: chord iterations, the kept rows' Jacobian inverted at the
+        # batches: chord iterations, the kept rows' Jacobian factorised at the
         # first iterate and afresh every CHORD iterations (each further
-        # iteration evaluates Φ alone: cheaper than a Jacobian and a solve)
-        fresh = rows is None or (it % CHORD == 0 and not (it == 0 and inverse is not None))
+        # iteration evaluates Φ alone: cheaper than a Jacobian and its LU)
+        fresh = rows is None or (it % CHORD == 0 and not (it == 0 and lu is not None))
         out = c.evaluate(pose, t, jacobian=fresh)
         if rows is None:
             Js = scaling.jacobian(out["jac"][0])
             dq = -np.linalg.lstsq(Js, out["phi"][0] * scaling.row, rcond=None)[0] * scaling.column
             dq = dq[None]
         else:
-            idx = list(rows)
             if fresh:
-                inverse = np.linalg.inv(out["jac"][:, idx])
+                lu = LU(kept(out["jac"], rows))
                 previous = np.full(len(pose), np.inf)      # the rate estimate starts over
-            dq = -np.einsum("nij,nj->ni", inverse, out["phi"][:, idx])
+            dq = -lu.solve(kept(out["phi"], rows))
         size = scaling.step(dq)
         dq[done] = 0.0
         pose = moved(pose, dq)
@@ -128,12 +134,17 @@ def newton(c: Constraints, scaling: Scaling, pose: Pose, t: np.ndarray, rows: tu
             break
         previous = size
     residual = np.abs(c.evaluate(pose, t, jacobian=False)["phi"] * scaling.row).max(axis=1)
+    refuse_unclosed(done, residual, t, where, scaling.size)
+    return pose
+
+
+def refuse_unclosed(done: np.ndarray, residual: np.ndarray, t: np.ndarray, where: str, size: float) -> None:
+    """Raise where Newton did not settle or the loop did not close."""
     if not done.all() or residual.max() > CLOSED:
         k = int(np.argmax(np.where(done, residual, np.inf)))
         raise MechanismError("joint" if where == "assembly" else "time",
                              f"the loop cannot close at t = {t[k]:.6g} s ({where}): Newton ends with a scaled "
-                             f"residual {residual[k]:.3g} (size {scaling.size:.3g} m)")
-    return pose
+                             f"residual {residual[k]:.3g} (size {size:.3g} m)")
 
 
 def _rank(M: np.ndarray) -> int:

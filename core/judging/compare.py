@@ -85,18 +85,21 @@ def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario:
     if len(result.t) != len(t) or not np.allclose(result.t, t, rtol=0, atol=1e-12 * max(1.0, abs(t[-1]))):
         raise ValueError(f"{engine}: sample instants differ from the reference's")
     names = [c for c in reference.frame.columns if c != "t"]
-    class_peak = class_scales(reference, names)
+    # the columns as arrays once (a frame's column look-up costs more than most signals' arithmetic)
+    references = {name: reference.frame[name].to_numpy() for name in names}
+    class_peak = class_scales(reference, names, references)
     result = with_aligned_quaternions(reference, result)
+    results = {name: column.to_numpy() for name, column in result.frame.items()}
     rows = []
     for name in names:
         cls = SIGNAL_CLASS[name]
-        ref = reference[name]
+        ref = references[name]
         peak = float(np.abs(ref).max())
         if peak <= ZERO_IN_THEORY * class_peak.get(cls, 0.0):
             peak = class_peak.get(cls, peak)
         tol = tolerance[cls]
         bound = tol * peak if tolerance.is_relative(cls) else tol
-        values = result[name] if name in result.frame else np.full(len(t), np.nan)
+        values = results[name] if name in results else np.full(len(t), np.nan)
         reason = result.missing.get(name, "" if name in result.frame else f"{engine} does not report {name}")
         bad = ~np.isfinite(values)
         row = dict(scenario=scenario, engine=engine, setting=setting, signal=name, **{"class": cls},
@@ -131,7 +134,8 @@ def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario:
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
-def class_scales(reference: Signals, names: list[str]) -> dict[str, float]:
+def class_scales(reference: Signals, names: list[str],
+                 columns: dict[str, np.ndarray] | None = None) -> dict[str, float]:
     """Per class, its largest peak; for a spatial reference (one that
     states its scene's size, the fact `length_scale` in m) the torque
     class at least the force class's peak times that size, and the force
@@ -140,7 +144,8 @@ def class_scales(reference: Signals, names: list[str]) -> dict[str, float]:
     for name in names:
         if name not in reference.missing:
             cls = SIGNAL_CLASS[name]
-            peaks[cls] = max(peaks.get(cls, 0.0), float(np.abs(reference[name]).max()))
+            values = reference[name] if columns is None else columns[name]
+            peaks[cls] = max(peaks.get(cls, 0.0), float(np.abs(values).max()))
     size = reference.info.facts.get("length_scale")
     if not size:
         return peaks
@@ -170,7 +175,7 @@ def with_aligned_quaternions(reference: Signals, result: Signals) -> Signals:
 def error_growth(t: np.ndarray, error: np.ndarray) -> dict[str, float]:
     """How |error| grows over the run: its largest value over the first and
     the last quarter of the time span, and the exponent p of a least-squares
-    fit log m(t) = p·log(t − t0) + c (numpy.polyfit) of its running maximum
+    fit log m(t) = p·log(t − t0) + c (least squares) of its running maximum
     m(t) = max |error| up to t, over the samples after t0 where m > 0 (NaN
     when fewer than three; the running maximum, so an error oscillating with
     the motion is measured by its envelope)."""
@@ -187,7 +192,9 @@ def error_growth(t: np.ndarray, error: np.ndarray) -> dict[str, float]:
     envelope = np.fmax.accumulate(error)
     fitted = (since > 0) & (envelope > 0) & np.isfinite(envelope)
     if fitted.sum() >= 3 and np.ptp(np.log(since[fitted])) > 0:
-        result["growth_exponent"] = float(np.polyfit(np.log(since[fitted]), np.log(envelope[fitted]), 1)[0])
+        x, y = np.log(since[fitted]), np.log(envelope[fitted])
+        dx = x - x.mean()           # the least-squares line's slope, as numpy.polyfit's degree 1 without its lstsq
+        result["growth_exponent"] = float(dx @ (y - y.mean()) / (dx @ dx))
     return result
 
 

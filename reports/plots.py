@@ -19,7 +19,6 @@ samples is thinned to the minimum and maximum of every window of samples
 from __future__ import annotations
 
 import base64
-import dataclasses
 import zlib
 from functools import lru_cache
 from pathlib import Path
@@ -189,11 +188,13 @@ def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapp
     entries of one code stream (see module doc), thinned where long. A
     spatial body's attitude angles are drawn too (`with_attitude_angles`:
     display only, with no bound)."""
-    reference = dataclasses.replace(reference, frame=with_attitude_angles(reference.frame))
-    results = {label: dataclasses.replace(r, frame=with_attitude_angles(r.frame)) for label, r in results.items()}
+    # each frame's columns as arrays once (a frame's column look-up costs more than a signal's encoding)
+    reference = {name: column.to_numpy() for name, column in with_attitude_angles(reference.frame).items()}
+    results = {label: {name: column.to_numpy() for name, column in with_attitude_angles(r.frame).items()}
+               for label, r in results.items()}
     stream = _Stream()
-    t = reference.t
-    names = [c for c in reference.frame.columns if c != "t"]
+    t = reference["t"]
+    names = [c for c in reference if c != "t"]
     signals = []
     for name in names:
         keep = _thinned(len(t), reference[name])
@@ -205,7 +206,7 @@ def signal_data(reference: Signals, results: Mapping[str, Signals], bounds: Mapp
     for label, result in results.items():
         traces = {}
         for name in names:
-            if name not in result.frame:
+            if name not in result:
                 continue
             error = result[name] - reference[name]
             keep = _thinned(len(t), error, result[name])

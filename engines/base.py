@@ -84,8 +84,11 @@ def planned_motion(mechanism: Mechanism) -> Mechanism:
     the forward-dynamics reference at RATE_RTOL. Each call of its `motion`
     solves anew: the harness asks for the step rule's grid once per scene
     (`peak_rates`)."""
-    if not mechanism.forward_dynamics or mechanism.spatial is not None:
+    if not mechanism.forward_dynamics:
         return mechanism
+    if mechanism.spatial is not None:
+        return dataclasses.replace(mechanism, motion=lambda t: spatial_solution(
+            mechanism.spatial, np.asarray(t, dtype=float), reactions=False, rtol=RATE_RTOL).frame)
     return dataclasses.replace(
         mechanism, motion=lambda t: reference_motion(mechanism, np.asarray(t, dtype=float), RATE_RTOL))
 

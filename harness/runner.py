@@ -139,9 +139,14 @@ def prepared_on(executor: Executor, scenarios: Sequence[Scenario], engines: Sequ
     raised as it would be in one process."""
     if not any(adapter(engine).uses_peak_rates for engine in engines):
         return [prepare(scenario, engines) for scenario in scenarios]
-    solved = executor.run(functools.partial(preparation_job, engines=list(engines)), list(scenarios))
-    return [prepare(scenario, engines) if done.error else Plan(scenario, build_mechanism(scenario), *done.value)
-            for scenario, done in zip(scenarios, solved)]
+    plans: dict[int, Plan] = {}
+
+    def arrived(index: int, done: Done) -> None:       # while the workers prepare the scenes after it
+        if not done.error:
+            plans[index] = Plan(scenarios[index], build_mechanism(scenarios[index]), *done.value)
+
+    executor.run(functools.partial(preparation_job, engines=list(engines)), list(scenarios), arrived)
+    return [plans[k] if k in plans else prepare(scenario, engines) for k, scenario in enumerate(scenarios)]
 
 
 def preparation_job(scenario: Scenario, engines: Sequence[str]) -> tuple[PeakRates | None, dict]:

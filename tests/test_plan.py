@@ -17,6 +17,10 @@ import pytest
 from mechval.reference.planar import solver as planar_solver
 from mechval.adapter import EngineAdapter, RawRun
 from mechval.harness import cli, executors
+# Imported before any test patches executors.LocalExecutor: a module first
+# imported under the patch (`from .executors import LocalExecutor`) would
+# keep the stand-in for every later test in this worker.
+from mechval.harness import baseline_run, run, runner  # noqa: F401
 from mechval.harness.executors import Done
 from mechval.harness.plan import prepare
 from mechval.model.kinematics import STEP_RULE_GRID, step_rate

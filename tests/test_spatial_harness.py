@@ -274,3 +274,22 @@ def test_the_motion_alone_is_the_full_solutions_motion(case):
     motion = spatial_mechanism(system).motion(t)
     assert list(motion.columns) == ["t", *system.motion_columns()]
     assert np.abs(motion.to_numpy() - full[motion.columns].to_numpy()).max() <= ROUNDING
+
+
+@pytest.mark.parametrize("name", ["spatial/t-handle", "spatial/heavy-top"])
+def test_a_free_spatial_scenes_step_rule_reads_a_looser_integration_to_the_same_rate(name):
+    """The step rule's motion of a torque-driven or free spatial scene is
+    integrated at RATE_RTOL, as a planar one's (`planned_motion`): its peak
+    rate Ω agrees with the reference's own integration to 1e-6, and so the
+    default step with it."""
+    from mechval.engines.base import RATE_RTOL, dense_grid, default_step, planned_motion
+    from mechval.model.kinematics import peak_rate
+    from mechval.reference.spatial.mechanism import spatial_solution
+    from mechval.scenarios.loader import load
+    scenario = load(name)
+    mech = build_mechanism(scenario)
+    t = dense_grid(scenario.time.t)
+    loose = peak_rate(mech, planned_motion(mech).motion(t), t)
+    exact = peak_rate(mech, spatial_solution(mech.spatial, t, reactions=False).frame, t)
+    assert RATE_RTOL > 1e-9 and abs(loose - exact) <= 1e-6 * exact
+    assert default_step(mech, scenario.time.t, rate=loose) == default_step(mech, scenario.time.t, rate=exact)

@@ -159,11 +159,14 @@ class SpatialDynamics:
         F = self._rates(t, np.vstack([y, y + np.diag(h)]))
         return ((F[1:] - F[0]) / h[:, None]).T
 
-    def _outputs(self, pose: Pose, w: np.ndarray, t: np.ndarray) -> tuple:
+    def _outputs(self, pose: Pose, w: np.ndarray, t: np.ndarray, full: bool = True) -> tuple:
         """ẇ, λ, Φq and the largest scaled position and velocity drifts at
         some outputs (`solve` asks in chunks: an (N, m, n) Jacobian of a
-        dense grid at once would take hundreds of MB)."""
+        dense grid at once would take hundreds of MB); not `full`: ẇ and λ
+        only (the motion alone)."""
         dw, lam = self.accelerations(pose, w, t)
+        if not full:
+            return dw, lam, None, np.nan, np.nan
         out = self.c.evaluate(pose, t, w)
         row = self.solver.scaling.row
         rates = np.einsum("nrk,nk->nr", out["jac"], w.reshape(len(t), -1)) - out["rhs"]
@@ -203,9 +206,10 @@ class SpatialDynamics:
                 raise MechanismError("time", f"the integration stopped: {run.message}")
             states, steps = run.y.T, int(run.t.size)
         pose, w = self._unpack(states)
-        parts = [self._outputs(Pose(pose.G[k], pose.A[k]), w[k], t[k])
+        parts = [self._outputs(Pose(pose.G[k], pose.A[k]), w[k], t[k], reactions)
                  for k in (slice(s, s + OUTPUT_CHUNK) for s in range(0, len(t), OUTPUT_CHUNK))]
-        dw, lam, jac = (np.concatenate(x) for x in zip(*(p[:3] for p in parts)))
+        dw, lam = (np.concatenate([p[k] for p in parts]) for k in (0, 1))
+        jac = np.concatenate([p[2] for p in parts]) if reactions else None
         drift_q, drift_v = max(p[3] for p in parts), max(p[4] for p in parts)
         state = State(t, pose, w, dw, lam, jac, tuple(self.rows))
         frame, missing = self.solver.frame_of(state, self.found, reactions)

@@ -22,13 +22,16 @@ from mechval.reference.spatial.system import SpatialSystem
 KIND = "spatial"
 
 
-def spatial_solution(system: SpatialSystem, t: np.ndarray, reactions: bool = True) -> SpatialSolution:
+def spatial_solution(system: SpatialSystem, t: np.ndarray, reactions: bool = True,
+                     rtol: float | None = None) -> SpatialSolution:
     """The reference at instants t: solved positions, rates and reactions
     (without `reactions`: the motion columns only) of a prescribed scene;
-    a torque-driven or free one integrated from its initial state at t[0]."""
+    a torque-driven or free one integrated from its initial state at t[0]
+    (at `rtol`, default the reference's own `dynamics.RTOL`)."""
     t = np.asarray(t, dtype=float)
     if system.forward_dynamics:
-        return SpatialDynamics(system, system.velocities, t0=float(t[0])).solve(t, reactions=reactions)
+        dynamics = SpatialDynamics(system, system.velocities, t0=float(t[0]))
+        return dynamics.solve(t, reactions=reactions, **({} if rtol is None else {"rtol": rtol}))
     return solve_spatial(system, t, reactions)
 
 

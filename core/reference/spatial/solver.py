@@ -310,9 +310,10 @@ class SpatialSolver:
         unique blanked with their reason, resultants added where rows are
         redundant; without `reactions`, the motion columns only."""
         columns = ["t"] + self.system.motion_columns() + self.system.reaction_columns()
-        frame = pd.DataFrame(table.T, columns=columns, copy=False)
         if not reactions:
-            return frame.iloc[:, :1 + len(self.system.motion_columns())], {}
+            motion = columns[:1 + len(self.system.motion_columns())]
+            return pd.DataFrame(table[:len(motion)].T, columns=motion, copy=False), {}
+        frame = pd.DataFrame(table.T, columns=columns, copy=False)
         missing = {}
         for k in np.flatnonzero(undetermined):
             frame[columns[k]] = np.nan
@@ -325,14 +326,17 @@ class SpatialSolver:
         return frame, missing
 
     def frame_of(self, s: State, found: Structure, reactions: bool = True) -> tuple[pd.DataFrame, dict[str, str]]:
-        """`finish` for one state (the dynamics' outputs)."""
-        table = np.concatenate([s.t[None], self._columns(s)])
+        """`finish` for one state (the dynamics' outputs; without
+        `reactions` its Jacobian and multipliers are not read)."""
+        table = np.concatenate([s.t[None], self._columns(s, reactions)])
         flags = np.zeros(len(table), dtype=bool)
-        if found.redundant and reactions:
+        if not reactions:
+            return self.finish(table, flags, found, np.empty((0, len(s.t))), reactions)
+        if found.redundant:
             flags[1:] = self._undetermined(s)
         return self.finish(table, flags, found, -np.einsum("nrk,nr->kn", s.jac, s.lam), reactions)
 
-    def _columns(self, s: State) -> np.ndarray:
+    def _columns(self, s: State, reactions: bool = True) -> np.ndarray:
         values = []
         for k, body in enumerate(self.system.bodies):
             A = s.pose.A[:, k]
@@ -342,7 +346,8 @@ class SpatialSolver:
             v = s.w[:, k, :3] - cross(om, arm)
             a = s.dw[:, k, :3] - cross(al, arm) - cross(om, cross(om, arm))
             values += [*origin.T, *matrix_to_quaternion(A).T, *v.T, *om.T, *a.T, *al.T]
-        values += list(self.reactions(s, s.lam))
+        if reactions:
+            values += list(self.reactions(s, s.lam))
         return np.array(values)
 
     def reactions(self, s: State, lam: np.ndarray, applied: bool = True) -> np.ndarray:

@@ -17,24 +17,12 @@ from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
 from mechval.reference.spatial.system import (BodyLoad, JointTorque, SpatialBody, SpatialDrive, SpatialJoint,
                                               SpatialSystem, Spring)
+from mechval.records.signals import SIGNAL_CLASS
 from mechval.reference.spatial.rotation import frame_from_axis
 from spatial_benchmarks import Bricard, FlyballGovernor
 from spatial_mechanisms import (HookesJoint, GRAVITY, Bennett, Delta, HeavyTop, RSSR, SphericalFourBar, TumblingBody, inertia,
                                 revolute, unit)
 from test_spatial_joint_kinds import sliding_body
-
-
-def signal_class(column: str) -> str:
-    q = column.rsplit(".", 1)[1]
-    if q in ("x", "y", "z"):
-        return "position"
-    if q in ("qw", "qx", "qy", "qz"):
-        return "angle"
-    if q[0] in "vw":
-        return "velocity"
-    if q[0] == "a":
-        return "acceleration"
-    return "force" if q[0] == "F" else "torque"
 
 
 def worst_ratios(engine: pd.DataFrame, reference: pd.DataFrame, missing, engine_missing=()
@@ -46,7 +34,7 @@ def worst_ratios(engine: pd.DataFrame, reference: pd.DataFrame, missing, engine_
     for column in reference.columns[1:]:
         if column in missing:
             continue
-        cls = signal_class(column)
+        cls = SIGNAL_CLASS[column]
         ref = reference[column].to_numpy(dtype=float)
         err = np.abs(engine[column].to_numpy(dtype=float) - ref)
         if column in engine_missing:

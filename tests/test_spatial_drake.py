@@ -34,21 +34,9 @@ from mechval.engines.base import Unrepresentable  # noqa: E402
 from mechval.engines.drake.adapter import DrakeAdapter  # noqa: E402
 from mechval.engines.drake.spatial import run_spatial, spatial_defaults, spatial_rate  # noqa: E402
 from mechval.testing import SpatialContract  # noqa: E402
+from mechval.records.signals import SIGNAL_CLASS  # noqa: E402
 
 pytestmark = pytest.mark.engine
-
-
-def column_class(column: str) -> str:
-    q = column.split(".", 1)[1]
-    if q in ("x", "y", "z"):
-        return "position"
-    if q in ("qw", "qx", "qy", "qz"):
-        return "angle"
-    if q[0] in "vw":
-        return "velocity"
-    if q[0] == "a":
-        return "acceleration"
-    return "force" if q[0] == "F" else "torque"
 
 
 def errors(system: SpatialSystem, t: np.ndarray, skip: int = 0, **settings) -> tuple[dict[str, float], dict]:
@@ -67,7 +55,7 @@ def class_errors(system: SpatialSystem, frame, ref, skip: int = 0) -> dict[str, 
     grouped: dict[str, list[str]] = {}
     for c in system.motion_columns() + system.reaction_columns():
         if c not in ref.missing:
-            grouped.setdefault(column_class(c), []).append(c)
+            grouped.setdefault(SIGNAL_CLASS[c], []).append(c)
     out = {}
     for cls, cols in grouped.items():
         err = np.abs(frame[cols].to_numpy()[skip:] - ref.frame[cols].to_numpy()[skip:]).max()

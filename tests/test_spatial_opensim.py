@@ -18,6 +18,7 @@ from mechval.adapter import PeakRates, Unrepresentable
 from mechval.model.drive import DriveLaw
 from mechval.model.mechanism import GROUND, TorqueLaw
 from mechval.model.scenario import DEFAULT_TOLERANCE
+from mechval.records.signals import SIGNAL_CLASS
 from mechval.reference.spatial.mechanism import spatial_mechanism, spatial_solution
 from mechval.reference.spatial.rotation import frame_from_axis, quaternion_to_matrix
 from mechval.testing import SpatialContract
@@ -41,11 +42,6 @@ CLASSES = {"position": ("x", "y", "z"), "angle": ("qw", "qx", "qy", "qz"),
                                                                                "alphaz")}
 
 
-def column_class(column: str) -> str:
-    q = column.rsplit(".", 1)[1]
-    return "force" if q.startswith("F") else "torque"
-
-
 def errors(system: SpatialSystem, t: np.ndarray) -> tuple[dict[str, float], object]:
     """Per class: the adapter's default run's error against the reference
     (absolute for positions and quaternions, else relative to the class
@@ -61,11 +57,11 @@ def errors(system: SpatialSystem, t: np.ndarray) -> tuple[dict[str, float], obje
     groups: dict[str, list[str]] = {k: [f"{b.name}.{q}" for b in system.bodies for q in qs] for k, qs in CLASSES.items()}
     for column in system.reaction_columns():
         if column not in ref.missing:
-            groups.setdefault(column_class(column), []).append(column)
+            groups.setdefault(SIGNAL_CLASS[column], []).append(column)
     engine, expected = resultants(system, raw.frame), ref.frame
     if any(c.endswith(".R.Fx") for c in expected):
         for column in engine:
-            groups.setdefault(column_class(column), []).append(column)
+            groups.setdefault(SIGNAL_CLASS[column], []).append(column)
     frame = raw.frame.join(engine)
     size = scene_length(system)
     out, peaks = {}, {}

@@ -79,6 +79,21 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
+def origin_motion(m: mujoco.MjModel, S: Mapping[str, np.ndarray], bids: np.ndarray) -> tuple[np.ndarray, ...]:
+    """ω, the body origin's velocity, α and its acceleration (samples,
+    bodies, 3), world axes, of the bodies `bids` from recorded cvel/cacc.
+    Those are spatial vectors at the root's subtree_com: shifted to the
+    body origin, the acceleration made classical (+ ω × v), gravity added
+    back (cacc carries −g from the world, accelerometer style). All bodies
+    at once: numpy's cost here is per call, not per number."""
+    gravity = np.zeros(3) if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else np.array(m.opt.gravity)
+    r = S["xpos"][:, bids] - S["subtree_com"][:, m.body_rootid[bids]]
+    w, v_c = S["cvel"][:, bids, :3], S["cvel"][:, bids, 3:]
+    dw, a_c = S["cacc"][:, bids, :3], S["cacc"][:, bids, 3:]
+    v = v_c + cross(w, r)
+    return w, v, dw, a_c + cross(dw, r) + cross(w, v) + gravity
+
+
 def compile_model(xml: str) -> mujoco.MjModel:
     """The compiled model, with MuJoCo's warnings silenced (the compiler
     runs the model once and warns, e.g. of a near-singular inertia, into
@@ -347,18 +362,9 @@ class Model:
         recorded data fields, and summary facts. `cut_force` (n, cuts, 2)
         is Fij of each cut pin, `efforts` (n, drives) each drive's T or F."""
         m, mech = self.m, self.mech
-        gravity = np.zeros(3) if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else m.opt.gravity
         col: dict[str, np.ndarray] = {"t": self.times}
-        # cvel/cacc are spatial vectors at the root's subtree_com: shift to
-        # the body origin, make the acceleration classical (+ ω × v), and add
-        # back gravity (cacc carries −g from the world, accelerometer style).
-        # All bodies at once: numpy's cost here is per call, not per number.
         bids = np.fromiter(self.bid.values(), dtype=int)
-        r = S["xpos"][:, bids] - S["subtree_com"][:, m.body_rootid[bids]]
-        w, v_c = S["cvel"][:, bids, :3], S["cvel"][:, bids, 3:]
-        dw, a_c = S["cacc"][:, bids, :3], S["cacc"][:, bids, 3:]
-        v = v_c + cross(w, r)
-        a = a_c + cross(dw, r) + cross(w, v) + gravity
+        w, v, dw, a = origin_motion(m, S, bids)
         zero = np.zeros(len(self.times))
         for k, (body, bid) in enumerate(self.bid.items()):
             theta = omega = alpha = zero

@@ -46,7 +46,7 @@ from mechval.reference.spatial.rotation import quaternion_to_matrix
 from mechval.reference.spatial.system import SpatialSystem
 
 from mechval.engines.mujoco.rollout import rollout_in_pieces
-from mechval.engines.mujoco.run import compile_model, cross, warning_info, warnings_silenced
+from mechval.engines.mujoco.run import compile_model, cross, origin_motion, warning_info, warnings_silenced
 from mechval.engines.mujoco.spatial_model import Names, Pose, Tree, mjcf, spanning_tree
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -218,14 +218,9 @@ class SpatialModel:
 
     def columns(self, S: Mapping[str, np.ndarray], cut: Mapping[str, np.ndarray]) -> pd.DataFrame:
         m, system = self.m, self.system
-        gravity = np.zeros(3) if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else np.array(m.opt.gravity)
         col: dict[str, np.ndarray] = {"t": self.times}
         bids = np.fromiter(self.bid.values(), dtype=int)
-        r = S["xpos"][:, bids] - S["subtree_com"][:, m.body_rootid[bids]]
-        w, v_c = S["cvel"][:, bids, :3], S["cvel"][:, bids, 3:]
-        dw, a_c = S["cacc"][:, bids, :3], S["cacc"][:, bids, 3:]
-        v = v_c + cross(w, r)
-        a = a_c + cross(dw, r) + cross(w, v) + gravity
+        w, v, dw, a = origin_motion(m, S, bids)
         q = S["xquat"][:, bids]
         q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
         for k, body in enumerate(self.bid):

@@ -70,10 +70,15 @@ def format_planar_analysis(a: PlanarAnalysis, max_instants: int = 12) -> str:
         f"3·{a.bodies} − 2·{a.joints} = {a.grubler}",
         f"redundant           {a.redundant} constraint{'s' if a.redundant != 1 else ''} (Jacobian rank {a.rank})",
         f"Jacobian cond. max  {a.condition_max:.4g} at t = {a.condition_t:.4g} s (median {a.condition_median:.4g})",
-        f"near-singular       {len(a.near_singular)} instant{'s' if len(a.near_singular) != 1 else ''} "
-        f"(condition peaks above {NEAR_SINGULAR:g}× the median)",
     ]
-    lines += [f"  t = {t:10.5f} s  condition {c:.4g}" for t, c in a.near_singular[:max_instants]]
-    if len(a.near_singular) > max_instants:
-        lines.append(f"  … {len(a.near_singular) - max_instants} more")
-    return "\n".join(lines)
+    return "\n".join(lines + near_singular_lines(a.near_singular, max_instants))
+
+
+def near_singular_lines(near_singular: tuple[tuple[float, float], ...], max_instants: int) -> list[str]:
+    """The report's near-singular instants (planar and spatial analyses alike)."""
+    lines = [f"near-singular       {len(near_singular)} instant{'s' if len(near_singular) != 1 else ''} "
+             f"(condition peaks above {NEAR_SINGULAR:g}× the median)"]
+    lines += [f"  t = {t:10.5f} s  condition {c:.4g}" for t, c in near_singular[:max_instants]]
+    if len(near_singular) > max_instants:
+        lines.append(f"  … {len(near_singular) - max_instants} more")
+    return lines

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mechval.model.scenario import Scenario, ScenarioError
+from mechval.reference.planar.analysis import NEAR_SINGULAR, near_singular_lines
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.columns import body_state
 from mechval.reference.spatial.mechanism import spatial_solution
@@ -31,7 +32,6 @@ from mechval.reference.spatial.structure import Scaling
 from mechval.reference.spatial.joints import Constraints
 from mechval.reference.spatial.system import SpatialSystem
 
-NEAR_SINGULAR = 10.0
 #: Constraint equations per joint kind (`joints.ROW_NAMES`).
 CONSTRAINED = {"spherical": 3, "revolute": 5, "universal": 4, "cylindrical": 4, "prismatic": 5, "planar": 3,
                "fixed": 6}
@@ -112,10 +112,5 @@ def format_spatial_analysis(a: SpatialAnalysis, max_instants: int = 12) -> str:
     lines += [
         f"Jacobian cond. max  {a.condition_max:.4g} at t = {a.condition_t:.4g} s (median {a.condition_median:.4g}; "
         f"{how})",
-        f"near-singular       {len(a.near_singular)} instant{'s' if len(a.near_singular) != 1 else ''} "
-        f"(condition peaks above {NEAR_SINGULAR:g}× the median)",
     ]
-    lines += [f"  t = {t:10.5f} s  condition {c:.4g}" for t, c in a.near_singular[:max_instants]]
-    if len(a.near_singular) > max_instants:
-        lines.append(f"  … {len(a.near_singular) - max_instants} more")
-    return "\n".join(lines)
+    return "\n".join(lines + near_singular_lines(a.near_singular, max_instants))

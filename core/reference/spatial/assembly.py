@@ -12,13 +12,14 @@ cos φ·(yi·xj) − sin φ·(xi·xj) and prismatic zi·d − φ.
 Per vector: its value, rate and bias (rate and bias as
 `joints.Constraints`' docstring defines them) and its variation per end
 of the joint, a 3 × 6 block [δG | δπ] (zero for the ground).
-Compiled with numba (cached beside this module) and releasing the GIL.
+Compiled as `kernel` says.
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from mechval.reference.spatial.kernel import kernel
 
 #: Row shapes of the encoded table.
 COMPONENT, DOT, REVOLUTE_DRIVE, PRISMATIC_DRIVE = 0, 1, 2, 3
@@ -33,123 +34,137 @@ NO, YES = np.zeros(1, dtype=np.bool_), np.ones(1, dtype=np.bool_)
 SLOT = np.arange(7)
 
 
-@numba.njit(cache=True, nogil=True)
-def _cross(a, b, out):
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
+@kernel
+def _cross(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
-@numba.njit(cache=True, nogil=True)
-def _inner(a, b):
-    """a·b of short vectors (numba's @ calls BLAS: slower at this size)."""
-    s = 0.0
-    for k in range(len(a)):
-        s += a[k] * b[k]
-    return s
+@kernel
+def _minus_skew(h0, h1, h2, blocks, j, slot, side, sign):
+    """blocks[j, slot, side, :, 3:] = −(sign·h)~ (δ(A·h') = δπ × h = −h̃·δπ)."""
+    blocks[j, slot, side, 0, 4], blocks[j, slot, side, 0, 5] = sign * h2, -sign * h1
+    blocks[j, slot, side, 1, 3], blocks[j, slot, side, 1, 5] = -sign * h2, sign * h0
+    blocks[j, slot, side, 2, 3], blocks[j, slot, side, 2, 4] = sign * h1, -sign * h0
 
 
-@numba.njit(cache=True, nogil=True)
-def _minus_skew(h, block, sign):
-    """block[:, 3:] = −(sign·h)~ (δ(A·h') = δπ × h = −h̃·δπ)."""
-    block[0, 4], block[0, 5] = sign * h[2], -sign * h[1]
-    block[1, 3], block[1, 5] = -sign * h[2], sign * h[0]
-    block[2, 3], block[2, 4] = sign * h[1], -sign * h[0]
-
-
-@numba.njit(cache=True, nogil=True)
-def _vectors(G, A, w, body, arm, frame, value, rate, bias, blocks, scratch, need_blocks, moving):
-    """The seven vectors of one joint at one instant (see the module);
-    rates and biases zero unless `moving`, blocks only if `need_blocks`."""
-    a, turn, spin = scratch[0], scratch[1], scratch[2]
+@kernel
+def _vectors(G, A, w, j, body, arm, frame, value, rate, bias, blocks, need_blocks, moving):
+    """The seven vectors of joint j at one instant (see the module) into
+    value[j], rate[j], bias[j], blocks[j]; rates and biases zero unless
+    `moving`, blocks only if `need_blocks`. Every array is indexed, never
+    sliced: a slice is a view whose reference count numba updates with an
+    atomic instruction, which cost a fifth of the batch's time."""
     if need_blocks:
-        blocks[:] = 0.0
-    rate[:] = 0.0
-    bias[:] = 0.0
-    value[D] = 0.0
+        for slot in range(7):
+            for side in range(2):
+                for r in range(3):
+                    for q in range(6):
+                        blocks[j, slot, side, r, q] = 0.0
+    for slot in range(7):
+        for r in range(3):
+            rate[j, slot, r] = 0.0
+            bias[j, slot, r] = 0.0
+    for r in range(3):
+        value[j, D, r] = 0.0
     for side in range(2):
-        b = body[side]
+        b = body[j, side]
         sign = 1.0 if side == 1 else -1.0
         for k in range(3):
             slot = 3 * side + k
             if b < 0:
-                value[slot] = frame[side, :, k]
+                for r in range(3):
+                    value[j, slot, r] = frame[j, side, r, k]
                 continue
             for r in range(3):
-                value[slot, r] = A[b, r, 0] * frame[side, 0, k] + A[b, r, 1] * frame[side, 1, k] \
-                    + A[b, r, 2] * frame[side, 2, k]
+                value[j, slot, r] = A[b, r, 0] * frame[j, side, 0, k] + A[b, r, 1] * frame[j, side, 1, k] \
+                    + A[b, r, 2] * frame[j, side, 2, k]
+            h0, h1, h2 = value[j, slot, 0], value[j, slot, 1], value[j, slot, 2]
             if moving:
-                _cross(w[b, 3:], value[slot], rate[slot])
-                _cross(w[b, 3:], rate[slot], bias[slot])
+                r0, r1, r2 = _cross(w[b, 3], w[b, 4], w[b, 5], h0, h1, h2)
+                rate[j, slot, 0], rate[j, slot, 1], rate[j, slot, 2] = r0, r1, r2
+                bias[j, slot, 0], bias[j, slot, 1], bias[j, slot, 2] = _cross(w[b, 3], w[b, 4], w[b, 5], r0, r1, r2)
             if need_blocks:
-                _minus_skew(value[slot], blocks[slot, side], 1.0)
+                _minus_skew(h0, h1, h2, blocks, j, slot, side, 1.0)
         if b < 0:
-            value[D] += sign * arm[side]
-            continue
-        for r in range(3):
-            a[r] = A[b, r, 0] * arm[side, 0] + A[b, r, 1] * arm[side, 1] + A[b, r, 2] * arm[side, 2]
-        for r in range(3):
-            value[D, r] += sign * (G[b, r] + a[r])
-        if moving:
-            _cross(w[b, 3:], a, turn)
-            _cross(w[b, 3:], turn, spin)
             for r in range(3):
-                rate[D, r] += sign * (w[b, r] + turn[r])
-                bias[D, r] += sign * spin[r]
+                value[j, D, r] += sign * arm[j, side, r]
+            continue
+        a0 = A[b, 0, 0] * arm[j, side, 0] + A[b, 0, 1] * arm[j, side, 1] + A[b, 0, 2] * arm[j, side, 2]
+        a1 = A[b, 1, 0] * arm[j, side, 0] + A[b, 1, 1] * arm[j, side, 1] + A[b, 1, 2] * arm[j, side, 2]
+        a2 = A[b, 2, 0] * arm[j, side, 0] + A[b, 2, 1] * arm[j, side, 1] + A[b, 2, 2] * arm[j, side, 2]
+        value[j, D, 0] += sign * (G[b, 0] + a0)
+        value[j, D, 1] += sign * (G[b, 1] + a1)
+        value[j, D, 2] += sign * (G[b, 2] + a2)
+        if moving:
+            t0, t1, t2 = _cross(w[b, 3], w[b, 4], w[b, 5], a0, a1, a2)
+            s0, s1, s2 = _cross(w[b, 3], w[b, 4], w[b, 5], t0, t1, t2)
+            rate[j, D, 0] += sign * (w[b, 0] + t0)
+            rate[j, D, 1] += sign * (w[b, 1] + t1)
+            rate[j, D, 2] += sign * (w[b, 2] + t2)
+            bias[j, D, 0] += sign * s0
+            bias[j, D, 1] += sign * s1
+            bias[j, D, 2] += sign * s2
         if need_blocks:
             for r in range(3):
-                blocks[D, side, r, r] = sign
-            _minus_skew(a, blocks[D, side], sign)
+                blocks[j, D, side, r, r] = sign
+            _minus_skew(a0, a1, a2, blocks, j, D, side, sign)
 
 
-@numba.njit(cache=True, nogil=True)
-def _dot(x, y, value, rate, bias, blocks, part, need_blocks):
-    """x·y of slots x, y: its value and γ; its variation per end in part
-    (2, 6) if `need_blocks`."""
+@kernel
+def _inner(u, x, v, y, j):
+    """u[j, x]·v[j, y] (numba's @ calls BLAS: slower at this size)."""
+    return 0.0 + u[j, x, 0] * v[j, y, 0] + u[j, x, 1] * v[j, y, 1] + u[j, x, 2] * v[j, y, 2]
+
+
+@kernel
+def _dot(j, x, y, value, rate, bias, blocks, part, need_blocks):
+    """x·y of joint j's slots x, y: its value and γ; its variation per end
+    in part (2, 6) if `need_blocks`."""
     for side in range(2 if need_blocks else 0):
         for q in range(6):
             s = 0.0
             for c in range(3):
-                s += value[y, c] * blocks[x, side, c, q] + value[x, c] * blocks[y, side, c, q]
+                s += value[j, y, c] * blocks[j, x, side, c, q] + value[j, x, c] * blocks[j, y, side, c, q]
             part[side, q] = s
-    v = _inner(value[x], value[y])
-    gamma = -(_inner(bias[x], value[y]) + 2 * _inner(rate[x], rate[y]) + _inner(value[x], bias[y]))
+    v = _inner(value, x, value, y, j)
+    gamma = -(_inner(bias, x, value, y, j) + 2 * _inner(rate, x, rate, y, j) + _inner(value, x, bias, y, j))
     return v, gamma
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def workspace(joints):
     """Scratch arrays of `instant` for a system of `joints` joints."""
     return (np.empty((joints, 7, 3)), np.empty((joints, 7, 3)), np.empty((joints, 7, 3)),
-            np.empty((joints, 7, 2, 3, 6)), np.zeros((2, 6)), np.zeros((2, 6)), np.empty((3, 3)))
+            np.empty((joints, 7, 2, 3, 6)), np.zeros((2, 6)), np.zeros((2, 6)))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def instant(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobian, moving, phi, jac, rhs, gamma,
             work):
     """The rows at one instant into phi, rhs, gamma (m,) and, if
     `jacobian`, added into jac (m, n) (zero it first); arguments as
     `assemble`'s for that instant, `work` from `workspace`."""
-    value, rate, bias, blocks, part, other, scratch = work
+    value, rate, bias, blocks, part, other = work
     m = len(shape)
     need_blocks = jacobian or moving       # a revolute drive's γ reads its rows' variations
     for j in range(len(body)):
-        _vectors(G, A, w, body[j], arm[j], frame[j], value[j], rate[j], bias[j], blocks[j], scratch,
-                 need_blocks, moving)
+        _vectors(G, A, w, j, body, arm, frame, value, rate, bias, blocks, need_blocks, moving)
     for r in range(m):
         j = joint[r]
-        v, g = value[j], 0.0
+        g = 0.0
         if shape[r] == COMPONENT:
             c = first[r]
-            phi[r] = v[D, c]
+            phi[r] = value[j, D, c]
             if need_blocks:
-                part[:] = blocks[j, D, :, c]
+                for side in range(2):
+                    for q in range(6):
+                        part[side, q] = blocks[j, D, side, c, q]
             g = -bias[j, D, c]
         elif shape[r] == DOT:
-            phi[r], g = _dot(first[r], second[r], v, rate[j], bias[j], blocks[j], part, need_blocks)
+            phi[r], g = _dot(j, first[r], second[r], value, rate, bias, blocks, part, need_blocks)
         elif shape[r] == PRISMATIC_DRIVE:
             k = first[r]
-            s, g = _dot(SLOT[2], SLOT[D], v, rate[j], bias[j], blocks[j], part, need_blocks)
+            s, g = _dot(j, SLOT[2], SLOT[D], value, rate, bias, blocks, part, need_blocks)
             phi[r] = s - law[k, 0]
             g += law[k, 2]
             rhs[r] = law[k, 1]
@@ -158,15 +173,19 @@ def instant(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobia
             # f̈ = c·S̈ − s·C̈ + 2(ċ·Ṡ − ṡ·Ċ) + c̈·S − s̈·C
             k = first[r]
             angle, speed, acc = law[k, 0], law[k, 1], law[k, 2]
-            S, S_gamma = _dot(SLOT[1], SLOT[3], v, rate[j], bias[j], blocks[j], other, need_blocks)
-            C, C_gamma = _dot(SLOT[0], SLOT[3], v, rate[j], bias[j], blocks[j], part, need_blocks)
+            S, S_gamma = _dot(j, SLOT[1], SLOT[3], value, rate, bias, blocks, other, need_blocks)
+            C, C_gamma = _dot(j, SLOT[0], SLOT[3], value, rate, bias, blocks, part, need_blocks)
             cos, sin = np.cos(angle), np.sin(angle)
             S_rate, C_rate = 0.0, 0.0
             for side in range(2):
                 b = body[j, side]
                 if b >= 0 and moving:
-                    S_rate += _inner(other[side], w[b])
-                    C_rate += _inner(part[side], w[b])
+                    s_side, c_side = 0.0, 0.0
+                    for q in range(6):
+                        s_side += other[side, q] * w[b, q]
+                        c_side += part[side, q] * w[b, q]
+                    S_rate += s_side
+                    C_rate += c_side
             for side in range(2):
                 for q in range(6):
                     part[side, q] = cos * other[side, q] - sin * part[side, q]
@@ -184,7 +203,7 @@ def instant(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobia
                         jac[r, 6 * b + q] += part[side, q]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def assemble(G, A, w, law, body, arm, frame, shape, joint, first, second, jacobian, moving, n):
     """Φ (N, m), Φq (N, m, n) (empty unless `jacobian`), −Φt and γ (N, m);
     `moving` False: w is zero (the vectors' rates and biases are skipped).

@@ -38,9 +38,10 @@ def mass_matrix(system: SpatialSystem, pose: Pose) -> np.ndarray:
     return M
 
 
-def mass_times(system: SpatialSystem, pose: Pose, dw: np.ndarray) -> np.ndarray:
-    """M·ẇ without forming M: (m·G̈, J·ω̇) per body, (N, n)."""
-    J = world_inertia(system, pose)
+def mass_times(system: SpatialSystem, pose: Pose, dw: np.ndarray, J: np.ndarray | None = None) -> np.ndarray:
+    """M·ẇ without forming M: (m·G̈, J·ω̇) per body, (N, n); J: the
+    world inertias, if the caller has them."""
+    J = world_inertia(system, pose) if J is None else J
     mass = np.array([b.mass for b in system.bodies])
     out = np.concatenate([mass[None, :, None] * dw[..., :3], np.einsum("nbij,nbj->nbi", J, dw[..., 3:])], axis=-1)
     return out.reshape(len(pose), -1)
@@ -64,12 +65,13 @@ class AppliedForces:
         if body >= 0:
             Q[:, 6 * body + 3:6 * body + 6] += torque
 
-    def generalised(self, pose: Pose, w: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def generalised(self, pose: Pose, w: np.ndarray, t: np.ndarray, J: np.ndarray | None = None) -> np.ndarray:
+        """Q at N instants; J: the world inertias, if the caller has them."""
         system, c = self.system, self.c
         N, nb = len(pose), len(system.bodies)
         Q = np.zeros((N, 6 * nb))
         g = np.asarray(system.gravity, dtype=float)
-        J = world_inertia(system, pose)
+        J = world_inertia(system, pose) if J is None else J
         for k, b in enumerate(system.bodies):
             om = w[:, k, 3:]
             Q[:, 6 * k:6 * k + 3] += b.mass * g

@@ -4,9 +4,8 @@ Algorithm 3.4.1), reused for every solve with the matrix and with its
 transpose, and for the 1-norm condition number (the inverse formed from
 the factors, as LAPACK's dgetri, only for its column sums).
 
-Compiled with numba (cached next to this module, so only the first
-process pays the compilation) and releasing the GIL, so the reference's
-batches run in threads. The loops skip the exact zeros of the sparse
+Compiled as `kernel` says (cached, releasing the GIL, so the
+reference's batches run in threads). The loops skip the exact zeros of the sparse
 Jacobians (skipping a zero changes no rounding). Figures are in
 tests/bench/spatial_bench.py's output, not here.
 
@@ -18,11 +17,12 @@ and the thresholds that read it, stay exact.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from mechval.reference.spatial.kernel import kernel
 
-@numba.njit(cache=True, nogil=True)
+
+@kernel
 def _factor(a: np.ndarray, piv: np.ndarray) -> bool:
     """LU of every a[k] in place (unit lower L below the diagonal, U on and
     above), row k swapped with piv[k] at step k; False if a pivot is zero."""
@@ -62,9 +62,9 @@ def _factor(a: np.ndarray, piv: np.ndarray) -> bool:
     return regular
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _solve_one(A: np.ndarray, piv: np.ndarray, x: np.ndarray) -> None:
-    """x ← A⁻¹·x from A's LU."""
+    """x ← A⁻¹·x from A's LU (skipping the factors' exact zeros, as `_factor`)."""
     n = len(x)
     for j in range(n):
         p = piv[j]
@@ -73,28 +73,32 @@ def _solve_one(A: np.ndarray, piv: np.ndarray, x: np.ndarray) -> None:
     for i in range(n):
         s = x[i]
         for c in range(i):
-            s -= A[i, c] * x[c]
+            if A[i, c] != 0.0:
+                s -= A[i, c] * x[c]
         x[i] = s
     for i in range(n - 1, -1, -1):
         s = x[i]
         for c in range(i + 1, n):
-            s -= A[i, c] * x[c]
+            if A[i, c] != 0.0:
+                s -= A[i, c] * x[c]
         x[i] = s / A[i, i]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _solve_transposed_one(A: np.ndarray, piv: np.ndarray, x: np.ndarray) -> None:
     """x ← A⁻ᵀ·x from A's LU: Uᵀ then Lᵀ, then the swaps in reverse."""
     n = len(x)
-    for i in range(n):
-        s = x[i]
-        for c in range(i):
-            s -= A[c, i] * x[c]
-        x[i] = s / A[i, i]
+    for i in range(n):       # Uᵀ by rows of U (contiguous): each x[c] still subtracts in the order c = 0, 1, …
+        x[i] = x[i] / A[i, i]
+        xi = x[i]
+        for c in range(i + 1, n):
+            if A[i, c] != 0.0:
+                x[c] -= A[i, c] * xi
     for i in range(n - 1, -1, -1):
         s = x[i]
         for c in range(i + 1, n):
-            s -= A[c, i] * x[c]
+            if A[c, i] != 0.0:
+                s -= A[c, i] * x[c]
         x[i] = s
     for j in range(n - 1, -1, -1):
         p = piv[j]
@@ -102,7 +106,7 @@ def _solve_transposed_one(A: np.ndarray, piv: np.ndarray, x: np.ndarray) -> None
             x[j], x[p] = x[p], x[j]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _solve(lu: np.ndarray, piv: np.ndarray, b: np.ndarray, transposed: bool) -> np.ndarray:
     x = b.copy()
     for k in range(len(b)):
@@ -113,7 +117,7 @@ def _solve(lu: np.ndarray, piv: np.ndarray, b: np.ndarray, transposed: bool) -> 
     return x
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _inverse_norm(A, piv, row, column, X):
     """‖(Dr·J·Dc)⁻¹‖₁ from J's LU: X = J⁻¹ by solving J·X = I with all
     right-hand sides at once, row by row (whole rows of X at a time:
@@ -140,22 +144,24 @@ def _inverse_norm(A, piv, row, column, X):
             if f != 0.0:
                 for q in range(n):
                     X[i, q] -= f * X[c, q]
-        d = A[i, i]
+        d = 1.0 / A[i, i]          # X only feeds the norm: a product's rounding instead of a quotient's
         for q in range(n):
-            X[i, q] /= d
+            X[i, q] *= d
     sums = X[0]                    # row by row: contiguous; each column summed in row order still
+    scale = 1.0 / column[0]
     for q in range(n):
-        sums[q] = abs(sums[q]) / column[0]
+        sums[q] = abs(sums[q]) * scale
     for i in range(1, n):
+        scale = 1.0 / column[i]
         for q in range(n):
-            sums[q] += abs(X[i, q]) / column[i]
+            sums[q] += abs(X[i, q]) * scale
     norm = 0.0
     for q in range(n):
         norm = max(norm, sums[q] / row[q])
     return norm
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def norm1(M, row, column, sums):
     """‖Dr·M·Dc‖₁, D = diag(row), diag(column); `sums` (n,) scratch. Row by
     row (contiguous), each column summed in row order."""
@@ -166,7 +172,7 @@ def norm1(M, row, column, sums):
     return sums.max()
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _condition(J: np.ndarray, lu: np.ndarray, piv: np.ndarray, row: np.ndarray, column: np.ndarray) -> np.ndarray:
     """‖Dr·J·Dc‖₁·‖(Dr·J·Dc)⁻¹‖₁ per instant."""
     N, n, _ = J.shape

@@ -11,31 +11,36 @@ written out.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from mechval.reference.spatial.assembly import NO, YES, instant, workspace
+from mechval.reference.spatial.kernel import kernel
 from mechval.reference.spatial.lu import _factor, _inverse_norm, _solve_one, norm1
 
 
-@numba.njit(cache=True, nogil=True)
-def solved(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, column, jac, lu, piv, w, dw,
-           scratch):
-    """At one solved instant: Φq into jac (m, n), zeroed here; the kept
-    rows' LU into lu (1, n, n), piv (1, n); w, ẇ (n,); Φ into scratch's
-    phi; returns the scaled condition (inf where the LU is singular).
-    `scratch` from `workspace_of`."""
+@kernel
+def factorise(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, column, jac, lu, piv, scratch):
+    """At one pose: Φ, −Φt into scratch's phi, rhs; Φq into jac (m, n),
+    zeroed here; the kept rows' LU into lu (1, n, n), piv (1, n). Returns
+    their scaled 1-norm (inf where the LU is singular)."""
     work, phi, rhs, gamma, rest, none, X = scratch
     n = len(rows)
-    nb = n // 6
     jac[:] = 0.0
     rhs[:] = 0.0
     instant(G, A, rest, law, body, arm, frame, shape, joint, first, second, YES[0], NO[0], phi, jac, rhs, gamma, work)
     for a in range(n):
-        lu[0, a] = jac[rows[a]]
-    norm = norm1(lu[0], row, column, w)      # w: scratch until solved for
-    if not _factor(lu, piv):
-        return np.inf
+        for q in range(n):
+            lu[0, a, q] = jac[rows[a], q]
+    norm = norm1(lu[0], row, column, X[0])      # X: scratch until the condition
+    return norm if _factor(lu, piv) else np.inf
+
+
+@kernel
+def rates_at(G, A, law, body, arm, frame, shape, joint, first, second, rows, lu, piv, w, dw, scratch):
+    """w, ẇ (n,) at the pose `factorise` left its factors and −Φt for."""
+    work, phi, rhs, gamma, rest, none, X = scratch
+    n = len(rows)
+    nb = n // 6
     for a in range(n):
         w[a] = rhs[rows[a]]
     _solve_one(lu[0], piv[0], w)
@@ -44,17 +49,30 @@ def solved(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, 
     for a in range(n):
         dw[a] = gamma[rows[a]]
     _solve_one(lu[0], piv[0], dw)
-    return norm * _inverse_norm(lu[0], piv[0], row, column, X)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
+def solved(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, column, jac, lu, piv, w, dw,
+           scratch):
+    """At one solved instant: `factorise`, then `rates_at`; Φ at the pose
+    left in scratch's phi; returns the scaled condition (inf where the LU
+    is singular). `scratch` from `workspace_of`."""
+    norm = factorise(G, A, law, body, arm, frame, shape, joint, first, second, rows, row, column, jac, lu, piv,
+                     scratch)
+    if not np.isfinite(norm):
+        return np.inf
+    rates_at(G, A, law, body, arm, frame, shape, joint, first, second, rows, lu, piv, w, dw, scratch)
+    return norm * _inverse_norm(lu[0], piv[0], row, column, scratch[6])
+
+
+@kernel
 def workspace_of(joints, m, n):
     """The scratch arrays `solved` uses."""
     return (workspace(joints), np.empty(m), np.empty(m), np.empty(m), np.zeros((n // 6, 6)), np.empty((0, 0)),
             np.empty((n, n)))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def velocities(G, A, law, body, arm, frame, shape, joint, first, second, rows, row_all, column):
     """`solved` at N instants: Φq (N, m, n), the kept rows' LU and pivots
     (N, n, n), (N, n), w and ẇ (N, n), the scaled condition (N,) (inf:

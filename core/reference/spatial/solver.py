@@ -29,6 +29,7 @@ body) is added as B.R.Fx … B.R.Mz, as the planar reference does.
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Mapping
@@ -37,7 +38,7 @@ import numpy as np
 import pandas as pd
 
 from mechval.reference.planar.constraints import MechanismError
-from mechval.reference.spatial.forces import AppliedForces, mass_times
+from mechval.reference.spatial.forces import AppliedForces, mass_times, world_inertia
 from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.resultants import resultant_columns
@@ -122,9 +123,10 @@ def multipliers(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray
     nb = len(c.bodies)
     lu = LU.from_factors(factors, piv)
     w, dw = w.reshape(len(t), nb, 6), dw.reshape(len(t), nb, 6)
-    Q = forces.generalised(pose, w, t) + (0 if extra is None else extra)
+    J = world_inertia(c.system, pose)
+    Q = forces.generalised(pose, w, t, J) + (0 if extra is None else extra)
     lam = np.zeros((len(t), c.m))
-    lam[:, list(rows)] = lu.solve_transposed(Q - mass_times(c.system, pose, dw))
+    lam[:, list(rows)] = lu.solve_transposed(Q - mass_times(c.system, pose, dw, J))
     return State(t, pose, w, dw, lam, jac, tuple(rows), lu, condition)
 
 
@@ -136,6 +138,9 @@ class SpatialSolver:
         self.c = Constraints(system)
         self.forces = AppliedForces(self.c)
         self.scaling = Scaling(self.c)
+        #: Per thread, `march`'s Jacobians and factors: a batch's are read
+        #: before that thread marches its next.
+        self._buffers = threading.local()
 
     def assemble(self, t0: float) -> tuple[Pose, Structure]:
         t = np.array([t0])
@@ -249,8 +254,10 @@ class SpatialSolver:
                                              "the continuation's prediction: a branch point or near-singular position")
             state = multipliers(self.c, self.forces, pose, tt, rows, *solved)
             condition[index] = state.condition
-            table[0, index] = tt
-            table[1:, index] = self._columns(state)
+            # a run of instants (as every batch but near a change of rows): a slice, faster than a gather
+            place = slice(index[0], index[-1] + 1) if index[-1] - index[0] == len(index) - 1 else index
+            table[0, place] = tt
+            table[1:, place] = self._columns(state)
             if found.redundant and reactions:    # −Φqᵀ·λ per body: unique however λ is split
                 resultants[:, index] = -np.einsum("nrk,nr->kn", state.jac, state.lam)
                 return self._undetermined(state)
@@ -281,10 +288,12 @@ class SpatialSolver:
         c = self.c
         joint, shape, first, second = c.table_rows
         follows = np.concatenate([[False], np.diff(index) == 1])
+        if getattr(self._buffers, "jac", np.empty(0)).shape[:1] < t.shape:      # this thread's, reused
+            self._buffers.jac, self._buffers.lu = np.empty((len(t), c.m, c.n)), np.empty((len(t), c.n, c.n))
         G, A, *rest = chord.march(
-            np.ascontiguousarray(predicted.G), np.ascontiguousarray(predicted.A), c.laws(t), *c.table_joints, shape,
+            np.ascontiguousarray(predicted.G), np.ascontiguousarray(predicted.A), t, c.laws(t), *c.table_joints, shape,
             joint, first, second, np.array(rows, dtype=np.int64), self.scaling.row, self.scaling.column, follows,
-            REPICK_CONDITION, CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION)
+            REPICK_CONDITION, CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION, self._buffers.jac, self._buffers.lu)
         return Pose(G, A), *rest
 
     def rows_at(self, pose: Pose, t: np.ndarray, rows: tuple[int, ...],

@@ -23,6 +23,7 @@ import contextlib
 import multiprocessing
 import os
 import signal
+import threading
 import time
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
@@ -52,8 +53,12 @@ def _describe(exc: BaseException) -> str:
 
 class Executor(Protocol):
     def run(self, fn: Callable[[Any], Any], items: Sequence[Any],
-            on_done: Callable[[int, Done], None] = lambda index, done: None) -> list[Done]:
-        """fn(item) for every item; on_done(index, done) as each finishes."""
+            on_done: Callable[[int, Done], Sequence[Any] | None] = lambda index, done: None) -> list[Done]:
+        """fn(item) for every item; on_done(index, done) as each finishes
+        (the local pool: in the items' order). Items that on_done returns
+        join the batch, after those given so far (their indices follow):
+        work that a finished item makes possible starts on the same
+        workers without waiting for the batch to end."""
 
 
 class LocalExecutor:
@@ -80,7 +85,9 @@ class LocalExecutor:
                            initargs=(os.getpid(),))
         try:
             futures = [pool.schedule(fn, args=(item,), timeout=self.timeout) for item in items]
-            for index, future in enumerate(futures):
+            index = 0
+            while index < len(futures):
+                future = futures[index]
                 try:
                     done = Done(future.result())
                 except FutureTimeout:
@@ -90,7 +97,10 @@ class LocalExecutor:
                 except Exception as exc:  # the task's own error, reported as data
                     done = Done(error=_describe(exc))
                 results.append(done)
-                on_done(index, done)
+                with FORK_GUARD:
+                    more = on_done(index, done) or ()
+                futures += [pool.schedule(fn, args=(item,), timeout=self.timeout) for item in more]
+                index += 1
         except BaseException:
             # Interrupted (Ctrl-C, SIGTERM) or a failure here: stop now.
             # pebble's close() would wait for the busy workers to finish.
@@ -100,6 +110,16 @@ class LocalExecutor:
         pool.join()
         return results
 
+
+#: Held while this process handles a finished item (`on_done`: plans
+#: built, runs compared, the progress bar drawn) and around every fork
+#: (os.register_at_fork): pebble forks each worker from its own thread,
+#: and a worker forked while the main thread held a lock (a buffered
+#: stream's, a functools.cached_property's, numba's compiler lock) would
+#: inherit it held by a thread it does not have and wait for it forever.
+FORK_GUARD = threading.RLock()
+os.register_at_fork(before=FORK_GUARD.acquire, after_in_parent=FORK_GUARD.release,
+                    after_in_child=FORK_GUARD.release)
 
 #: How often pebble's pool looks at its workers (s): a worker that ended
 #: its one task is replaced only then, so at pebble's own 0.1 s a slot
@@ -212,6 +232,16 @@ class DaskExecutor:
         futures = [client.submit(_on_worker, fn, item, pure=False) for item in items]
         index_of = {future.key: index for index, future in enumerate(futures)}
         deadline = time.monotonic() + self.timeout * max(1, len(items))
+
+        def add(more: Sequence[Any]) -> None:
+            nonlocal deadline
+            for item in more:
+                futures.append(client.submit(_on_worker, fn, item, pure=False))
+                index_of[futures[-1].key] = len(results)
+                results.append(None)
+                pending.add(futures[-1])
+            deadline += self.timeout * len(more)
+
         no_workers_since: float | None = None
         pending, missing = set(futures), "timed out on the Dask cluster"
         try:
@@ -224,7 +254,7 @@ class DaskExecutor:
                 for future in finished:
                     index = index_of[future.key]
                     results[index] = _done(future)
-                    on_done(index, results[index])
+                    add(on_done(index, results[index]) or ())
                 if finished or client.nthreads():
                     no_workers_since = None
                 elif no_workers_since is None:

@@ -20,7 +20,6 @@ derives nothing.
 from __future__ import annotations
 
 import dataclasses
-import functools
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
@@ -74,11 +73,18 @@ class Plan:
         """The values of `resolved`."""
         return dict(self.resolved(engine, overrides).values)
 
-    @functools.cached_property
+    @property
     def features(self) -> dict[str, str]:
         """`mechanism_features`, found once per plan (a rank test of the
-        joints' Jacobian; asked for every engine)."""
-        return mechanism_features(self.mechanism)
+        joints' Jacobian; asked for every engine). Not a functools.
+        cached_property: on Python 3.11 that holds one lock for every plan
+        while it computes, and `mechval run` builds plans while its pool
+        forks workers; a worker forked in that moment inherits the lock
+        held by a thread it does not have, and hangs at its first plan
+        (seen: `mechval run` stalled, a worker asleep in that lock)."""
+        if "_features" not in self.__dict__:
+            object.__setattr__(self, "_features", mechanism_features(self.mechanism))
+        return self.__dict__["_features"]
 
     def refusal(self, engine_adapter: EngineAdapter | str) -> str:
         """Why the adapter declares it cannot build this scene (key and

@@ -41,7 +41,7 @@ from .executors import Done, LocalExecutor, executor_for
 from .plan import Plan
 from .preflight import (check_dask_address, check_out_dir, check_runs, chosen_engines, chosen_scenarios,
                         default_out_dir, left_out, worker_count)
-from .runner import import_engines, joined, outcome_records, prepared_on, run_alongside, scene_job, tasks_for
+from .runner import import_engines, joined, outcome_records, prepare_and_run
 from .simulate import simulate
 
 
@@ -95,26 +95,30 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
     with phase("load scenarios and engines"):
         chosen = chosen_scenarios(scenarios, skip_hard, long)
         engines = chosen_engines(engines)
-    with phase("plan runs: settings, limits"):
+    with phase("plan runs: engines, output folder"):
         if isinstance(executor, LocalExecutor):
             import_engines(engines)
-        plans = prepared_on(executor, chosen, engines)      # each scene prepared once for every phase
-        tasks = tasks_for(plans, engines)
+        out = out or default_out_dir()
+        check_out_dir(out)
+
+    def check(plans: list[Plan], tasks: list) -> None:
+        """The limits, once every scene is prepared and before any engine runs."""
         check_runs([(t.scenario, t.engine, t.settings) for t in tasks if not t.refused], limits)
         if cost:
             check_runs([(t.scenario, t.engine, t.settings) for plan in plans for e in engines
                         for t in points_for(plan, e)], limits)
-        out = out or default_out_dir()
-        check_out_dir(out)
-    # The engine runs, and alongside them, on the same workers, each scene's
-    # reference and model audit (which builds the models again and
-    # simulates nothing) and the engine findings measured on the installed
-    # versions: the main job's own work overlaps the engine runs.
-    # Each run is compared as it arrives, once its scene's reference has.
+
+    # One batch on the workers: each scene's preparation (its peak rates and
+    # every engine's defaults); as each arrives, the scene's reference, model
+    # audit (which builds the models again and simulates nothing) and
+    # drawing; the engine findings measured on the installed versions; and,
+    # once every scene is prepared and the limits pass, the engine runs.
+    # The main job's own work overlaps the engine runs. Each run is compared
+    # as it arrives, once its scene's reference has.
     arrived: dict[str, Signals] = {}
     compared: dict[int, pd.DataFrame] = {}                 # id(task) → its records
     waiting: dict[str, list[Outcome]] = {}
-    with phase("engine runs"), tqdm(total=len(tasks), desc="engine runs", unit="run", file=sys.stderr,
+    with phase("engine runs"), tqdm(total=None, desc="engine runs", unit="run", file=sys.stderr,
                                     disable=quiet) as bar:
         def done(outcome):
             bar.set_postfix_str(one_line(outcome.task.label, 80) + (" FAILED" if outcome.error else ""),
@@ -126,19 +130,23 @@ def _run_and_report(scenarios, engines, out, executor, *, skip_hard, long, quiet
             else:
                 waiting.setdefault(name, []).append(outcome)
 
-        def job_done(index, job):
-            if index < len(plans) and not job.error:
-                name = plans[index].scenario.name
+        def scene_done(index, job):
+            if not job.error:
+                name = chosen[index].name
                 arrived[name] = job.value[0][0]
                 for outcome in waiting.pop(name, []):
                     compared[id(outcome.task)] = outcome_records(outcome, arrived[name])
 
-        jobs = [functools.partial(scene_job, plan.scenario, {e: plan.settings(e) for e in engines if not plan.refusal(e)})
-                for plan in plans]
-        outcomes, side = run_alongside(tasks, jobs + [functools.partial(measure_findings, engines)], executor, done,
-                                       on_job=job_done)
+        def counted(tasks):
+            bar.total = len(tasks)
+            bar.refresh()
+
+        batch = prepare_and_run(executor, chosen, engines, check, done, scene_done, counted,
+                                functools.partial(measure_findings, engines))
+        plans, outcomes, side = batch.plans, batch.outcomes, batch.side
     with phase("comparison"):
         references, audits, findings, drawings, alongside_cpu = _side_results(plans, engines, side)
+        alongside_cpu += batch.preparation_cpu
         records = joined([compared[id(o.task)] if id(o.task) in compared
                           else outcome_records(o, references[o.task.scenario.name]) for o in outcomes])
     with phase("report: sections"):

@@ -12,6 +12,7 @@ import functools
 import importlib
 import os
 import time
+from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import pandas as pd
@@ -102,13 +103,7 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
     in s); on_job(index, done) as each job ends. A task the engine
     refused up front (`Task.refused`) is not run: its outcome is the
     refusal."""
-    def outcome(task: Task, done: Done) -> Outcome:
-        if done.error:
-            return Outcome(task, None, done.error, worker=done.worker)
-        signals, wall_time, cpu_time, *sensitivity = done.value
-        return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time,
-                       sensitivity=sensitivity[0] if sensitivity else None, worker=done.worker)
-
+    outcome = _outcome
     for task in tasks:
         if task.refused:
             on_done(Outcome(task, None, task.refused))
@@ -125,6 +120,111 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
     in_task_order = dict(zip(order, results[len(jobs):]))
     return [Outcome(task, None, task.refused) if task.refused else outcome(task, in_task_order[k])
             for k, task in enumerate(tasks)], results[:len(jobs)]
+
+
+def _outcome(task: Task, done: Done) -> Outcome:
+    """A run's outcome from its worker's Done."""
+    if done.error:
+        return Outcome(task, None, done.error, worker=done.worker)
+    signals, wall_time, cpu_time, *sensitivity = done.value
+    return Outcome(task, signals, wall_time=wall_time, cpu_time=cpu_time,
+                   sensitivity=sensitivity[0] if sensitivity else None, worker=done.worker)
+
+
+@dataclass
+class Prepared:
+    """What `prepare_and_run` did: the scenes' plans, their engine runs
+    (tasks) and the runs' outcomes in the tasks' order, one Done per side
+    job (each scene's `scene_job`, then the findings, as `run_alongside`'s
+    jobs) and the workers' CPU time (s) for the preparations."""
+
+    plans: list[Plan]
+    tasks: list[Task]
+    outcomes: list[Outcome]
+    side: list[Done]
+    preparation_cpu: float
+
+
+def prepare_and_run(executor: Executor, scenarios: Sequence[Scenario], engines: Sequence[str],
+                    check: Callable[[list[Plan], list[Task]], None],
+                    on_done: Callable[[Outcome], None] = lambda outcome: None,
+                    on_scene: Callable[[int, Done], None] = lambda index, done: None,
+                    on_tasks: Callable[[list[Task]], None] = lambda tasks: None,
+                    findings: Callable[[], Any] | None = None) -> Prepared:
+    """`mechval run`'s work as one batch of the executor's workers, so that
+    they go from one phase to the next without the batch ending: each
+    scene's preparation (`preparation_job`, as `prepared_on`; its plan is
+    built here as it arrives), then the findings; once every scene is
+    prepared, `check(plans, tasks)` (the limits: it raises before any
+    reference or engine runs, and the batch stops), on_tasks(tasks), and
+    each scene's job (`scene_job`: reference, audit, drawing) and the
+    engine runs join, the most steps first. on_scene(k, done) as scene
+    k's job ends, on_done(outcome) as each run does. A preparation that
+    fails on a worker is done again here, so that its error is raised as
+    it would be in one process."""
+    engines = list(engines)
+    plans: list[Plan | None] = [None] * len(scenarios)
+    side: list[Done | None] = [None] * (len(scenarios) + 1)
+    tasks: list[Task] = []
+    ran: dict[int, Done] = {}
+    kinds: list[tuple[str, int]] = []         # per item of the batch: what it is, and which
+    cpu = [0.0]
+    remote = any(adapter(engine).uses_peak_rates for engine in engines)
+
+    def item(kind: str, k: int, job: Callable[[], Any]) -> Callable[[], Any]:
+        kinds.append((kind, k))
+        return job
+
+    def scene_item(k: int) -> Callable[[], Any]:
+        plan = plans[k]
+        settings = {e: plan.settings(e) for e in engines if not plan.refusal(e)}
+        return item("scene", k, functools.partial(_timed, functools.partial(scene_job, plan.scenario, settings)))
+
+    def checked_work() -> list[Callable[[], Any]]:
+        """Once every scene is prepared: the limits, then the scene jobs
+        and the engine runs."""
+        tasks.extend(tasks_for(plans, engines))
+        check(plans, tasks)
+        on_tasks(tasks)
+        for task in tasks:
+            if task.refused:
+                on_done(Outcome(task, None, task.refused))
+        return [scene_item(k) for k in range(len(plans))] + [
+            item("run", k, functools.partial(simulate_task, tasks[k]))
+            for k in longest_first(tasks) if not tasks[k].refused]
+
+    def done(index: int, result: Done) -> list[Callable[[], Any]]:
+        kind, k = kinds[index]
+        if kind == "prepare":
+            if result.error:
+                plans[k] = prepare(scenarios[k], engines)
+            else:
+                (rates, defaults), cpu[0] = result.value[0], cpu[0] + result.value[1]
+                plans[k] = Plan(scenarios[k], build_mechanism(scenarios[k]), rates, defaults)
+            return checked_work() if all(plan is not None for plan in plans) else []
+        if kind == "run":
+            ran[k] = result
+            on_done(_outcome(tasks[k], result))
+        else:
+            side[k] = result
+            if kind == "scene":
+                on_scene(k, result)
+        return []
+
+    if remote:
+        first = [item("prepare", k, functools.partial(_timed, functools.partial(preparation_job, scenario, engines)))
+                 for k, scenario in enumerate(scenarios)]
+    else:           # nothing to solve ahead: prepared here
+        plans[:] = [prepare(scenario, engines) for scenario in scenarios]
+        first = []
+    # the findings fill the workers the last preparations leave idle
+    first.append(item("findings", len(scenarios), functools.partial(_timed, findings or (lambda: None))))
+    if not remote:
+        first += checked_work()
+    executor.run(_call, first, done)
+    outcomes = [Outcome(task, None, task.refused) if task.refused else _outcome(task, ran[k])
+                for k, task in enumerate(tasks)]
+    return Prepared(plans, tasks, outcomes, side, cpu[0])
 
 
 def prepared_on(executor: Executor, scenarios: Sequence[Scenario], engines: Sequence[str]) -> list[Plan]:

@@ -5,7 +5,10 @@ pytest plugin (`mechval.testing.plugin`), as in any repository."""
 from __future__ import annotations
 
 import functools
+import importlib
 import importlib.metadata
+import os
+from pathlib import Path
 
 import pytest
 
@@ -65,3 +68,27 @@ def engine(request):
     return engine_or_skip(request.param)
 
 
+
+
+#: Where `engine_work_started` leaves its mark (the environment: a worker
+#: process gets the stand-in pickled by name, not the test's closure).
+WORK_MARK = "MECHVAL_TEST_WORK_MARK"
+
+
+def engine_work_started(*args, **kwargs):
+    """Stands in for engine work under `no_engine_work`: leaves its mark and fails."""
+    Path(os.environ[WORK_MARK]).write_text("started", encoding="utf-8")
+    raise AssertionError("engine work started before the refusal")
+
+
+@pytest.fixture
+def no_engine_work(monkeypatch, tmp_path_factory):
+    """Fail if any engine (or the reference for a report) starts working,
+    in this process or in a worker."""
+    mark = tmp_path_factory.mktemp("work") / "started"
+    monkeypatch.setenv(WORK_MARK, str(mark))
+    for module, name in [("runner", "scene_job"), ("runner", "simulate_task"), ("cost", "sweep"),
+                         ("simulate", "simulate")]:
+        monkeypatch.setattr(importlib.import_module(f"mechval.harness.{module}"), name, engine_work_started)
+    yield
+    assert not mark.exists(), "engine work started before the refusal"

@@ -4,7 +4,6 @@ would take, before any work; output is checked before the engines run."""
 
 from __future__ import annotations
 
-import importlib
 import os
 import stat
 from pathlib import Path
@@ -251,15 +250,6 @@ def fakes(monkeypatch):
     monkeypatch.setattr(registry, "targets", registered())
 
 
-@pytest.fixture
-def no_engine_work(monkeypatch):
-    """Fail if any engine (or the reference for a report) starts working."""
-    def started(*args, **kwargs):
-        raise AssertionError("engine work started before the refusal")
-    for module, name in [("run", "run_alongside"), ("cost", "sweep"), ("simulate", "simulate")]:
-        monkeypatch.setattr(importlib.import_module(f"mechval.harness.{module}"), name, started)
-
-
 def test_cli_refuses_over_max_steps_before_engine_work(fakes, no_engine_work, tmp_path, capsys):
     scene = tmp_path / "scene.toml"
     scene.write_text(builtin_path("slider-crank").read_text(encoding="utf-8"), encoding="utf-8")
@@ -344,3 +334,24 @@ def test_planar_files_get_the_same_scene_bounds(edit, key):
     with pytest.raises(ScenarioError) as info:
         parse(doc, "twin.toml")
     assert info.value.key == key
+
+
+@pytest.mark.engine
+def test_a_run_refuses_a_later_scene_over_the_limits_before_any_scene_runs(no_engine_work, tmp_path, capsys):
+    """`mechval run` prepares its scenes on the workers and checks the
+    limits once all are prepared: a second scene over --max-steps stops
+    the run before the first scene's reference or engine runs start."""
+    engine_or_skip("mujoco")
+    text = builtin_path("slider-crank").read_text(encoding="utf-8")
+    short, long = tmp_path / "short.toml", tmp_path / "long.toml"
+    short.write_text(text, encoding="utf-8")
+    long.write_text(text.replace("end = 2.0", "end = 2000.0").replace('name = "slider-crank"', 'name = "long"'),
+                    encoding="utf-8")
+    assert cli.main(["run", str(short), "--engine", "mujoco", "--out", str(tmp_path / "r"), "--quiet",
+                     "--max-steps", "1"]) == 2
+    steps = float(capsys.readouterr().err.split("would take ")[1].split()[0])      # the short scene's run size
+    assert cli.main(["run", str(short), str(long), "--engine", "mujoco", "--out", str(tmp_path / "r"), "--quiet",
+                     "--max-steps", f"{10 * steps:g}"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"mechval: error: {long}: time.end: one mujoco run would take ") and err.count("\n") == 1
+    assert not (tmp_path / "r").exists()

@@ -70,10 +70,10 @@ class InProcess:
         pass
 
     def run(self, fn, items, on_done=lambda index, done: None):
-        results = []
-        for index, item in enumerate(items):
-            results.append(Done(fn(pickle.loads(pickle.dumps(item)))))
-            on_done(index, results[-1])
+        items, results = list(items), []
+        while len(results) < len(items):
+            results.append(Done(fn(pickle.loads(pickle.dumps(items[len(results)])))))
+            items += on_done(len(results) - 1, results[-1]) or ()
         return results
 
 

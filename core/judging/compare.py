@@ -47,6 +47,7 @@ bound) is "missing", with the estimate.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -79,59 +80,79 @@ CROSS_SCALED = {"torque": ("force", 1.0), "force": ("torque", -1.0)}
 
 def compare(reference: Signals, result: Signals, tolerance: Tolerance, scenario: str = "",
             engine: str | None = None, setting: str = "default") -> pd.DataFrame:
-    """Discrepancy records of `result` against `reference` (same samples)."""
+    """Discrepancy records of `result` against `reference` (same samples).
+
+    Every signal's arithmetic is done on all signals at once, as rows of
+    one array (the main job compares each engine run as it arrives, in
+    the process that also feeds the workers): each row's figures are
+    those of the rule applied to it alone, bit for bit."""
     engine = engine or result.source
     t = reference.t
     if len(result.t) != len(t) or not np.allclose(result.t, t, rtol=0, atol=1e-12 * max(1.0, abs(t[-1]))):
         raise ValueError(f"{engine}: sample instants differ from the reference's")
-    names = [c for c in reference.frame.columns if c != "t"]
-    # the columns as arrays once (a frame's column look-up costs more than most signals' arithmetic)
-    references = {name: reference.frame[name].to_numpy() for name in names}
-    class_peak = class_scales(reference, names, references)
+    names = [c for c in reference.frame.columns.tolist() if c != "t"]     # a list: pandas' string index iterates slowly
+    ref = np.ascontiguousarray(reference.frame[names].to_numpy(dtype=float).T)      # one row per signal
+    class_peak = class_scales(reference, names, dict(zip(names, ref)))
     result = with_aligned_quaternions(reference, result)
-    results = {name: column.to_numpy() for name, column in result.frame.items()}
-    rows = []
-    for name in names:
-        cls = SIGNAL_CLASS[name]
-        ref = references[name]
-        peak = float(np.abs(ref).max())
-        if peak <= ZERO_IN_THEORY * class_peak.get(cls, 0.0):
-            peak = class_peak.get(cls, peak)
-        tol = tolerance[cls]
-        bound = tol * peak if tolerance.is_relative(cls) else tol
-        values = results[name] if name in results else np.full(len(t), np.nan)
-        reason = result.missing.get(name, "" if name in result.frame else f"{engine} does not report {name}")
-        bad = ~np.isfinite(values)
-        row = dict(scenario=scenario, engine=engine, setting=setting, signal=name, **{"class": cls},
-                   peak=peak, tolerance=tol, bound=bound, missing=int(bad.sum()), reason=reason)
+    values = np.ascontiguousarray(result.frame.reindex(columns=names).to_numpy(dtype=float).T)
+    classes = [SIGNAL_CLASS[name] for name in names]
+    peak = np.abs(ref).max(axis=1) if len(t) else np.zeros(len(names))
+    zero = np.array([class_peak.get(cls, 0.0) for cls in classes])
+    peak = np.where(peak <= ZERO_IN_THEORY * zero, np.where(zero > 0, zero, peak), peak)
+    tol = np.array([tolerance[cls] for cls in classes], dtype=float)
+    bound = np.where([tolerance.is_relative(cls) for cls in classes], tol * peak, tol)
+    bad = ~np.isfinite(values)
+    reported = set(result.frame.columns.tolist())
+    reasons = [result.missing.get(name, "" if name in reported else f"{engine} does not report {name}")
+               for name in names]
+    records = {column: np.full(len(names), np.nan) for column in
+               ("max_error", "t_max", "rms_error", "relative_error", "ratio", *GROWTH_COLUMNS)}
+    records.update(peak=peak, bound=bound, reason=np.array(reasons, dtype=object),
+                   verdict=np.full(len(names), "pass", dtype=object))
+    clean = ~bad.any(axis=1) & np.array([name not in reference.missing for name in names], dtype=bool)
+    if clean.any() and len(t):
+        _judge(records, np.flatnonzero(clean), t, np.abs(values[clean] - ref[clean]))
+    for k in np.flatnonzero(~clean):
+        name, row_bad = names[k], bad[k]
         if name in reference.missing:
             # The reference has no value to compare with (e.g. a reaction
             # that redundant constraints leave statically indeterminate):
             # whatever the engine reports is never judged.
-            row.update(peak=np.nan, bound=np.nan, max_error=np.nan, t_max=np.nan, rms_error=np.nan,
-                       relative_error=np.nan, ratio=np.nan, verdict="missing",
-                       reason=f"reference: {reference.missing[name]}")
-        elif bad.all():
-            row.update(max_error=np.nan, t_max=np.nan, rms_error=np.nan, relative_error=np.nan,
-                       ratio=np.nan, verdict="fail" if not reason else "missing",
-                       reason=reason or "no finite value")
-        elif bad.any() and not reason:
-            row.update(max_error=np.inf, t_max=float(t[bad][0]), rms_error=np.inf, relative_error=np.inf,
-                       ratio=np.inf, verdict="fail", reason="non-finite values without a stated reason")
-        else:
-            error = np.abs(values[~bad] - ref[~bad])
-            worst = int(np.argmax(error))
-            max_error = float(error[worst])
-            row.update(error_growth(t[~bad], error))
-            row.update(max_error=max_error, t_max=float(t[~bad][worst]),
-                       rms_error=float(np.sqrt(np.mean(error**2))),
-                       relative_error=max_error / peak if peak else np.nan,
-                       ratio=max_error / bound if bound else (0.0 if max_error == 0 else np.inf))
-            row["verdict"] = "pass" if row["ratio"] <= 1.0 else "fail"
-        rows.append(row)
+            records["peak"][k] = records["bound"][k] = np.nan
+            records["verdict"][k], records["reason"][k] = "missing", f"reference: {reference.missing[name]}"
+        elif row_bad.all():
+            records["verdict"][k] = "fail" if not reasons[k] else "missing"
+            records["reason"][k] = reasons[k] or "no finite value"
+        elif not reasons[k]:
+            for column in ("max_error", "rms_error", "relative_error", "ratio"):
+                records[column][k] = np.inf
+            records["t_max"][k] = float(t[row_bad][0])
+            records["verdict"][k], records["reason"][k] = "fail", "non-finite values without a stated reason"
+        else:                   # the values the engine marks missing, with a reason, are left out
+            kept = ~row_bad
+            _judge(records, np.array([k]), t[kept], np.abs(values[k, kept] - ref[k, kept])[None])
+    frame = pd.DataFrame(dict(scenario=scenario, engine=engine, setting=setting, signal=names, **{"class": classes},
+                              tolerance=tol, missing=bad.sum(axis=1), **records), columns=COLUMNS)
     if result.health is not None:
-        rows += _health_rows(result.health, tolerance, dict(scenario=scenario, engine=engine, setting=setting))
-    return pd.DataFrame(rows, columns=COLUMNS)
+        health = _health_rows(result.health, tolerance, dict(scenario=scenario, engine=engine, setting=setting))
+        frame = pd.concat([frame, pd.DataFrame(health, columns=COLUMNS)], ignore_index=True) if health else frame
+    return frame
+
+
+def _judge(records: dict[str, np.ndarray], rows: np.ndarray, t: np.ndarray, error: np.ndarray) -> None:
+    """The figures and verdicts of signals `rows` from their |errors| at
+    instants t (one row each), into `records`."""
+    worst = np.argmax(error, axis=1)
+    max_error = error[np.arange(len(rows)), worst]
+    peak, bound = records["peak"][rows], records["bound"][rows]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        records["relative_error"][rows] = np.where(peak != 0, max_error / peak, np.nan)
+        ratio = np.where(bound != 0, max_error / bound, np.where(max_error == 0, 0.0, np.inf))
+    records["max_error"][rows], records["t_max"][rows], records["ratio"][rows] = max_error, t[worst], ratio
+    records["rms_error"][rows] = np.sqrt(np.mean(error**2, axis=1))
+    for column, values in error_growths(t, error).items():
+        records[column][rows] = values
+    records["verdict"][rows] = np.where(ratio <= 1.0, "pass", "fail")
 
 
 def class_scales(reference: Signals, names: list[str],
@@ -159,11 +180,11 @@ def with_aligned_quaternions(reference: Signals, result: Signals) -> Signals:
     attitude, and the qw ≥ 0 convention jumps at half a turn, where an
     engine a rounding past it would otherwise read 2 off."""
     frame = result.frame
-    bodies = [name[:-3] for name in reference.frame.columns if name.endswith(".qw")]
-    flips = {}
+    bodies = [name[:-3] for name in reference.frame.columns.tolist() if name.endswith(".qw")]
+    flips, reported = {}, set(frame.columns.tolist())
     for body in bodies:
         columns = [f"{body}.q{c}" for c in "wxyz"]
-        if not set(columns) <= set(frame.columns):
+        if not set(columns) <= reported:
             continue
         dot = np.einsum("ni,ni->n", frame[columns].to_numpy(dtype=float), reference.frame[columns].to_numpy())
         sign = np.where(dot < 0, -1.0, 1.0)
@@ -179,22 +200,36 @@ def error_growth(t: np.ndarray, error: np.ndarray) -> dict[str, float]:
     m(t) = max |error| up to t, over the samples after t0 where m > 0 (NaN
     when fewer than three; the running maximum, so an error oscillating with
     the motion is measured by its envelope)."""
+    return {column: float(values[0]) for column, values in
+            error_growths(t, np.asarray(error, dtype=float)[None]).items()}
+
+
+def error_growths(t: np.ndarray, error: np.ndarray) -> dict[str, np.ndarray]:
+    """`error_growth` of each row of `error` (signals × instants t) at once:
+    the element-wise work (the running maxima and their logarithms) on the
+    whole array, then each row's fit over its own samples (the same
+    operations in the same order as for that row alone)."""
     t = np.asarray(t, dtype=float)
     error = np.abs(np.asarray(error, dtype=float))
-    result = dict.fromkeys(GROWTH_COLUMNS, np.nan)
+    result = {column: np.full(len(error), np.nan) for column in GROWTH_COLUMNS}
     if not len(t):
         return result
     since = t - t[0]
     span = since[-1]
-    first, last = since <= span / 4, since >= 3 * span / 4
-    result["error_first_quarter"] = float(np.nanmax(error[first])) if np.isfinite(error[first]).any() else np.nan
-    result["error_last_quarter"] = float(np.nanmax(error[last])) if np.isfinite(error[last]).any() else np.nan
-    envelope = np.fmax.accumulate(error)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # all-NaN quarters: NaN, as stated
+        result["error_first_quarter"] = np.nanmax(error[:, since <= span / 4], axis=1)
+        result["error_last_quarter"] = np.nanmax(error[:, since >= 3 * span / 4], axis=1)
+    envelope = np.fmax.accumulate(error, axis=1)
     fitted = (since > 0) & (envelope > 0) & np.isfinite(envelope)
-    if fitted.sum() >= 3 and np.ptp(np.log(since[fitted])) > 0:
-        x, y = np.log(since[fitted]), np.log(envelope[fitted])
-        dx = x - x.mean()           # the least-squares line's slope, as numpy.polyfit's degree 1 without its lstsq
-        result["growth_exponent"] = float(dx @ (y - y.mean()) / (dx @ dx))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logs, log_envelope = np.log(since), np.log(envelope)
+    for k in np.flatnonzero(fitted.sum(axis=1) >= 3):
+        x = logs[fitted[k]]
+        if np.ptp(x) > 0:
+            y = log_envelope[k, fitted[k]]
+            dx = x - x.mean()           # the least-squares line's slope, as numpy.polyfit's degree 1 without its lstsq
+            result["growth_exponent"][k] = float(dx @ (y - y.mean()) / (dx @ dx))
     return result
 
 

@@ -7,7 +7,7 @@ import pandas as pd
 
 from mechval.judging.compare import ZERO_IN_THEORY, compare
 from mechval.model.scenario import Tolerance
-from mechval.records.signals import Signals
+from mechval.records.signals import SIGNAL_CLASS, Signals
 
 
 def signals(**columns) -> Signals:
@@ -37,3 +37,29 @@ def test_a_small_but_real_signal_keeps_its_own_peak():
     engine = signals(**{"a.vy": small * 1.5, "a.vx": np.cos(t)})
     row = compare(reference, engine, Tolerance()).set_index("signal").loc["a.vy"]
     assert row["peak"] == 1e-6 and row["verdict"] == "fail"
+
+
+def test_each_signal_is_judged_as_if_compared_alone():
+    """`compare` works on all signals as rows of one array; each record
+    equals, bit for bit, the record of that signal compared on its own
+    beside its class's other signals (the class's peak is the only figure
+    signals share). Clean, growing, partly missing with a reason,
+    non-finite without one, and unreported signals."""
+    t = np.linspace(0.0, 2.0, 2001)
+    rng = np.random.default_rng(3)
+    reference = {"a.x": np.cos(t), "a.vx": -np.sin(t), "b.theta": t ** 2, "b.omega": 2 * t,
+                 "c.Fx": 1e3 * np.sin(3 * t), "c.Fy": np.zeros_like(t)}
+    engine = {name: values + 1e-6 * rng.standard_normal(len(t)) * (1 + t) for name, values in reference.items()}
+    engine["b.omega"][100:120] = np.nan          # with a stated reason: left out
+    engine["c.Fx"][5] = np.inf                   # without one: fails
+    del engine["c.Fy"]                           # not reported
+    result = Signals(pd.DataFrame({"t": t, **engine}), "x", missing={"b.omega": "not sampled there"})
+    together = compare(Signals(pd.DataFrame({"t": t, **reference}), "reference"), result, Tolerance())
+    for name in reference:
+        same_class = {k: v for k, v in reference.items() if SIGNAL_CLASS[k] == SIGNAL_CLASS[name]}
+        alone_reference = Signals(pd.DataFrame({"t": t, **same_class}), "reference")
+        alone = compare(alone_reference, result, Tolerance()).set_index("signal").loc[[name]].reset_index()
+        row = together.set_index("signal").loc[[name]].reset_index()
+        pd.testing.assert_frame_equal(row, alone, check_exact=True, check_dtype=False)
+    verdicts = together.set_index("signal")["verdict"]
+    assert verdicts["c.Fx"] == "fail" and verdicts["c.Fy"] == "missing" and verdicts["a.x"] == "pass"

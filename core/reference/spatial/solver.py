@@ -210,6 +210,9 @@ class SpatialSolver:
         pose0, found = self.assemble(float(t[0]))
         nodes = self._march(pose0, found, float(t[0]), float(t[-1]))
         node_t = np.array([n.t[0] for n in nodes])
+        continuation = tuple(np.ascontiguousarray(np.concatenate(x)) for x in (
+            [n.pose.G for n in nodes], [n.pose.A for n in nodes], [n.w.reshape(1, -1) for n in nodes],
+            [n.dw.reshape(1, -1) for n in nodes])) + (node_t,)
         columns = ["t"] + self.system.motion_columns() + self.system.reaction_columns()
         table = np.empty((len(columns), len(t)))
         undetermined = np.zeros(len(columns), dtype=bool)
@@ -229,16 +232,11 @@ class SpatialSolver:
 
         def group(index: np.ndarray, which: np.ndarray, rows: tuple[int, ...]) -> np.ndarray:
             tt = t[index]
-            predicted = Pose(np.empty((len(tt), len(self.c.bodies), 3)), np.empty((len(tt), len(self.c.bodies), 3, 3)))
-            for k in np.unique(which):
-                mask = which == k
-                guess = predict(nodes[k], tt[mask])
-                predicted.G[mask], predicted.A[mask] = guess.G, guess.A
-            pose, poor, done, residual, *solved = self.march(predicted, tt, rows, index)
+            pose, poor, done, residual, jump, *solved = self.march(continuation, which, tt, rows, index)
             better = rows
             if poor.any():         # near a pose where these rows turn singular: the poor instants get others
                 k = int(np.argmax(poor))
-                J = self.c.evaluate(Pose(predicted.G[k:k + 1], predicted.A[k:k + 1]), tt[k:k + 1])["jac"][0]
+                J = self.c.evaluate(predict(nodes[which[k]], tt[k:k + 1]), tt[k:k + 1])["jac"][0]
                 better = kept_rows(self.c, self.scaling.jacobian(J), self.c.n - found.mobility)
             if better != rows:
                 flags = group(index[poor], which[poor], better)
@@ -247,7 +245,6 @@ class SpatialSolver:
                 keep = ~poor
                 return flags | group(index[keep], which[keep], rows)
             refuse_unclosed(done, residual, tt, "batch", self.scaling.size)
-            jump = self.scaling.step(flat_difference(pose, predicted))
             if jump.max() > BRANCH_JUMP:
                 k = int(np.argmax(jump))
                 raise MechanismError("time", f"at t = {tt[k]:.6g} s the solution lies {jump[k]:.3g} (scaled) from "
@@ -279,20 +276,23 @@ class SpatialSolver:
                  "continuation_nodes": len(nodes)}
         return SpatialSolution(frame, missing, found, facts, condition)
 
-    def march(self, predicted: Pose, t: np.ndarray, rows: tuple[int, ...], index: np.ndarray) -> tuple:
-        """Positions and rates of a batch instant after instant (`chord`):
-        the solved poses, which instants' rows are poor, which settled,
-        their closing residuals, and `motion.velocities`' outputs. `index`:
-        the instants' places in the run (an instant follows the one before
-        it in the run, or is solved afresh)."""
+    def march(self, continuation: tuple, which: np.ndarray, t: np.ndarray, rows: tuple[int, ...],
+              index: np.ndarray) -> tuple:
+        """Positions and rates of a batch instant after instant (`chord`)
+        from the continuation's nodes (their G, A, w, ẇ and t stacked;
+        `which`: each instant's node): the solved poses, which instants'
+        rows are poor, which settled, their closing residuals, their
+        distances from the nodes' predictions, and `motion.velocities`'
+        outputs. `index`: the instants' places in the run (an instant
+        follows the one before it in the run, or is solved afresh)."""
         c = self.c
         joint, shape, first, second = c.table_rows
         follows = np.concatenate([[False], np.diff(index) == 1])
         if getattr(self._buffers, "jac", np.empty(0)).shape[:1] < t.shape:      # this thread's, reused
             self._buffers.jac, self._buffers.lu = np.empty((len(t), c.m, c.n)), np.empty((len(t), c.n, c.n))
         G, A, *rest = chord.march(
-            np.ascontiguousarray(predicted.G), np.ascontiguousarray(predicted.A), t, c.laws(t), *c.table_joints, shape,
-            joint, first, second, np.array(rows, dtype=np.int64), self.scaling.row, self.scaling.column, follows,
+            *continuation, np.ascontiguousarray(which, dtype=np.int64), t, c.laws(t), *c.table_joints, shape, joint,
+            first, second, np.array(rows, dtype=np.int64), self.scaling.row, self.scaling.column, follows,
             REPICK_CONDITION, CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION, self._buffers.jac, self._buffers.lu)
         return Pose(G, A), *rest
 

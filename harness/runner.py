@@ -103,23 +103,32 @@ def run_alongside(tasks: list[Task], jobs: Sequence[Callable[[], Any]], executor
     in s); on_job(index, done) as each job ends. A task the engine
     refused up front (`Task.refused`) is not run: its outcome is the
     refusal."""
-    outcome = _outcome
-    for task in tasks:
-        if task.refused:
-            on_done(Outcome(task, None, task.refused))
-    order = [k for k in longest_first(tasks) if not tasks[k].refused]
+    order = _runnable(tasks, on_done)
     items = [functools.partial(_timed, job) for job in jobs] + [functools.partial(body, tasks[k]) for k in order]
 
     def done(index: int, result: Done) -> None:
         if index >= len(jobs):
-            on_done(outcome(tasks[order[index - len(jobs)]], result))
+            on_done(_outcome(tasks[order[index - len(jobs)]], result))
         else:
             on_job(index, result)
 
     results = executor.run(_call, items, done)
-    in_task_order = dict(zip(order, results[len(jobs):]))
-    return [Outcome(task, None, task.refused) if task.refused else outcome(task, in_task_order[k])
-            for k, task in enumerate(tasks)], results[:len(jobs)]
+    return _in_task_order(tasks, dict(zip(order, results[len(jobs):]))), results[:len(jobs)]
+
+
+def _runnable(tasks: list[Task], on_done: Callable[[Outcome], None]) -> list[int]:
+    """The indices of the tasks to run, the most steps first; each task
+    the engine refused up front is an outcome now (on_done), not a run."""
+    for task in tasks:
+        if task.refused:
+            on_done(Outcome(task, None, task.refused))
+    return [k for k in longest_first(tasks) if not tasks[k].refused]
+
+
+def _in_task_order(tasks: list[Task], ran: Mapping[int, Done]) -> list[Outcome]:
+    """Every task's outcome (ran: task index → its run's Done)."""
+    return [Outcome(task, None, task.refused) if task.refused else _outcome(task, ran[k])
+            for k, task in enumerate(tasks)]
 
 
 def _outcome(task: Task, done: Done) -> Outcome:
@@ -169,7 +178,7 @@ def prepare_and_run(executor: Executor, scenarios: Sequence[Scenario], engines: 
     ran: dict[int, Done] = {}
     kinds: list[tuple[str, int]] = []         # per item of the batch: what it is, and which
     cpu = [0.0]
-    remote = any(adapter(engine).uses_peak_rates for engine in engines)
+    remote = _solved_ahead(engines)
 
     def item(kind: str, k: int, job: Callable[[], Any]) -> Callable[[], Any]:
         kinds.append((kind, k))
@@ -186,12 +195,8 @@ def prepare_and_run(executor: Executor, scenarios: Sequence[Scenario], engines: 
         tasks.extend(tasks_for(plans, engines))
         check(plans, tasks)
         on_tasks(tasks)
-        for task in tasks:
-            if task.refused:
-                on_done(Outcome(task, None, task.refused))
         return [scene_item(k) for k in range(len(plans))] + [
-            item("run", k, functools.partial(simulate_task, tasks[k]))
-            for k in longest_first(tasks) if not tasks[k].refused]
+            item("run", k, functools.partial(simulate_task, tasks[k])) for k in _runnable(tasks, on_done)]
 
     def done(index: int, result: Done) -> list[Callable[[], Any]]:
         kind, k = kinds[index]
@@ -199,8 +204,7 @@ def prepare_and_run(executor: Executor, scenarios: Sequence[Scenario], engines: 
             if result.error:
                 plans[k] = prepare(scenarios[k], engines)
             else:
-                (rates, defaults), cpu[0] = result.value[0], cpu[0] + result.value[1]
-                plans[k] = Plan(scenarios[k], build_mechanism(scenarios[k]), rates, defaults)
+                plans[k], cpu[0] = _plan_from(scenarios[k], result.value[0]), cpu[0] + result.value[1]
             return checked_work() if all(plan is not None for plan in plans) else []
         if kind == "run":
             ran[k] = result
@@ -222,9 +226,7 @@ def prepare_and_run(executor: Executor, scenarios: Sequence[Scenario], engines: 
     if not remote:
         first += checked_work()
     executor.run(_call, first, done)
-    outcomes = [Outcome(task, None, task.refused) if task.refused else _outcome(task, ran[k])
-                for k, task in enumerate(tasks)]
-    return Prepared(plans, tasks, outcomes, side, cpu[0])
+    return Prepared(plans, tasks, _in_task_order(tasks, ran), side, cpu[0])
 
 
 def prepared_on(executor: Executor, scenarios: Sequence[Scenario], engines: Sequence[str]) -> list[Plan]:
@@ -237,16 +239,28 @@ def prepared_on(executor: Executor, scenarios: Sequence[Scenario], engines: Sequ
     the mechanism is built here again (it solves nothing). A scene whose
     preparation fails there is prepared here, so that its error is
     raised as it would be in one process."""
-    if not any(adapter(engine).uses_peak_rates for engine in engines):
+    if not _solved_ahead(engines):
         return [prepare(scenario, engines) for scenario in scenarios]
     plans: dict[int, Plan] = {}
 
     def arrived(index: int, done: Done) -> None:       # while the workers prepare the scenes after it
         if not done.error:
-            plans[index] = Plan(scenarios[index], build_mechanism(scenarios[index]), *done.value)
+            plans[index] = _plan_from(scenarios[index], done.value)
 
     executor.run(functools.partial(preparation_job, engines=list(engines)), list(scenarios), arrived)
     return [plans[k] if k in plans else prepare(scenario, engines) for k, scenario in enumerate(scenarios)]
+
+
+def _solved_ahead(engines: Sequence[str]) -> bool:
+    """Whether some engine reads peak rates: then the scenes' preparations
+    are solves, done by the workers (else a plan solves nothing)."""
+    return any(adapter(engine).uses_peak_rates for engine in engines)
+
+
+def _plan_from(scenario: Scenario, prepared: tuple[PeakRates | None, dict]) -> Plan:
+    """A scene's plan from what its `preparation_job` sent back: the
+    mechanism built here again (it solves nothing)."""
+    return Plan(scenario, build_mechanism(scenario), *prepared)
 
 
 def preparation_job(scenario: Scenario, engines: Sequence[str]) -> tuple[PeakRates | None, dict]:

@@ -52,22 +52,30 @@ def _turn(p0, p1, p2, A, i, b, K, R):
 
 
 @kernel
+def _taylor(G0, A0, w, dw, k, dt, G, A, i, K, R):
+    """G[i], A[i] ← the second-order Taylor step over dt from pose k of
+    G0, A0 with its rates w, ẇ (k, n), rotations on the group
+    (`solver.predict`)."""
+    for b in range(G.shape[1]):
+        for r in range(3):
+            G[i, b, r] = G0[k, b, r] + w[k, 6 * b + r] * dt + 0.5 * dw[k, 6 * b + r] * dt * dt
+            for q in range(3):
+                A[i, b, r, q] = A0[k, b, r, q]
+        _turn(w[k, 6 * b + 3] * dt + 0.5 * dw[k, 6 * b + 3] * dt * dt,
+              w[k, 6 * b + 4] * dt + 0.5 * dw[k, 6 * b + 4] * dt * dt,
+              w[k, 6 * b + 5] * dt + 0.5 * dw[k, 6 * b + 5] * dt * dt, A, i, b, K, R)
+
+
+@kernel
 def _advance(G, A, w, dw, i, dt, K, R):
-    """Instant i's poses from instant i − 1's by its second-order Taylor
-    step, rotations on the group (`solver.predict`), each rotation then
-    made orthogonal again by a Newton–Schulz step A ← (3A − A·Aᵀ·A)/2
+    """Instant i's poses from instant i − 1's (`_taylor`), each rotation
+    then made orthogonal again by a Newton–Schulz step A ← (3A − A·Aᵀ·A)/2
     (Higham 2008, §8.3): carried from instant to instant, a rotation's
     rounding would otherwise walk away from the group, and Newton, which
     moves bodies only along it, could not close the rows below that
     (tests/test_spatial_rows.py measures it)."""
+    _taylor(G, A, w, dw, i - 1, dt, G, A, i, K, R)
     for b in range(G.shape[1]):
-        for r in range(3):
-            G[i, b, r] = G[i - 1, b, r] + (w[i - 1, 6 * b + r] + 0.5 * dw[i - 1, 6 * b + r] * dt) * dt
-            for q in range(3):
-                A[i, b, r, q] = A[i - 1, b, r, q]
-        _turn((w[i - 1, 6 * b + 3] + 0.5 * dw[i - 1, 6 * b + 3] * dt) * dt,
-              (w[i - 1, 6 * b + 4] + 0.5 * dw[i - 1, 6 * b + 4] * dt) * dt,
-              (w[i - 1, 6 * b + 5] + 0.5 * dw[i - 1, 6 * b + 5] * dt) * dt, A, i, b, K, R)
         for r in range(3):          # R = A·Aᵀ, K = R·A
             for q in range(3):
                 R[r, q] = A[i, b, r, 0] * A[i, b, q, 0] + A[i, b, r, 1] * A[i, b, q, 1] + A[i, b, r, 2] * A[i, b, q, 2]
@@ -77,20 +85,6 @@ def _advance(G, A, w, dw, i, dt, K, R):
         for r in range(3):
             for q in range(3):
                 A[i, b, r, q] = 1.5 * A[i, b, r, q] - 0.5 * K[r, q]
-
-
-@kernel
-def _node_prediction(node_G, node_A, node_w, node_dw, k, dt, PG, PA, K, R):
-    """PG[0], PA[0] ← node k's second-order Taylor step over dt, rotations
-    on the group (`solver.predict`, the continuation's prediction)."""
-    for b in range(PG.shape[1]):
-        for r in range(3):
-            PG[0, b, r] = node_G[k, b, r] + node_w[k, 6 * b + r] * dt + 0.5 * node_dw[k, 6 * b + r] * dt * dt
-            for q in range(3):
-                PA[0, b, r, q] = node_A[k, b, r, q]
-        _turn(node_w[k, 6 * b + 3] * dt + 0.5 * node_dw[k, 6 * b + 3] * dt * dt,
-              node_w[k, 6 * b + 4] * dt + 0.5 * node_dw[k, 6 * b + 4] * dt * dt,
-              node_w[k, 6 * b + 5] * dt + 0.5 * node_dw[k, 6 * b + 5] * dt * dt, PA, 0, b, K, R)
 
 
 @kernel
@@ -150,7 +144,7 @@ def march(node_G, node_A, node_w, node_dw, node_t, which, t, law, body, arm, fra
     i, retried = 0, False
     while i < N:
         have = have and follows[i]
-        _node_prediction(node_G, node_A, node_w, node_dw, which[i], t[i] - node_t[which[i]], PG, PA, K, R)
+        _taylor(node_G, node_A, node_w, node_dw, which[i], t[i] - node_t[which[i]], PG, PA, 0, K, R)   # the node's
         if have:
             _advance(G, A, w, dw, i, t[i] - t[i - 1], K, R)
         else:

@@ -4,7 +4,9 @@ batched spatial kinematics and inverse dynamics: the delta robot under
 2 s on 2 cores) and on planar built-ins against the planar reference
 (goal: within 3× of it).
 
-    .venv/bin/python tests/bench/spatial_bench.py [--instants N] [--repeats R]
+    .venv/bin/python tests/bench/spatial_bench.py [--instants N] [--repeats R] [--chunk C]
+
+--chunk sets the instants per batch (`solver.CHUNK`) to compare sizes.
 
 Prints CPU and wall seconds, best of R rounds, and the load average (the
 machine is shared: prefer the CPU figures and ratios). Asserts nothing.
@@ -24,6 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ helpers
 
 from mechval.reference.linkages import build_mechanism  # noqa: E402
 from mechval.reference.planar.solver import raw_planar  # noqa: E402
+from mechval.reference.spatial import solver  # noqa: E402
 from mechval.reference.spatial.from_planar import spatial_from_planar  # noqa: E402
 from mechval.reference.spatial.solver import SpatialSolver  # noqa: E402
 from mechval.scenarios import load  # noqa: E402
@@ -45,8 +48,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--instants", type=int, default=100_000)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--chunk", type=int, default=solver.CHUNK)
     args = parser.parse_args()
-    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    solver.CHUNK = args.chunk
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; {args.chunk} instants a batch")
     t = np.linspace(0.0, 1.0, args.instants)
     for make in (Delta, SphericalFourBar, RSSR):
         system = make().system

@@ -38,21 +38,20 @@ def mass_matrix(system: SpatialSystem, pose: Pose) -> np.ndarray:
     return M
 
 
-def mass_times(system: SpatialSystem, pose: Pose, dw: np.ndarray, J: np.ndarray | None = None) -> np.ndarray:
-    """M·ẇ without forming M: (m·G̈, J·ω̇) per body, (N, n); J: the
-    world inertias, if the caller has them."""
-    J = world_inertia(system, pose) if J is None else J
-    mass = np.array([b.mass for b in system.bodies])
-    out = np.concatenate([mass[None, :, None] * dw[..., :3], np.einsum("nbij,nbj->nbi", J, dw[..., 3:])], axis=-1)
-    return out.reshape(len(pose), -1)
-
-
 class AppliedForces:
     """Q(q, q̇, t) of a system, (N, n), vectorised over instants."""
 
     def __init__(self, constraints: Constraints):
         self.c = constraints
-        self.system = constraints.system
+        self.system = system = constraints.system
+        #: The bodies' mass (nb,), inertia about the centre of mass in body
+        #: axes (nb, 3, 3) and gravity (3,): Q's gravity and gyroscopic
+        #: loads, which `outputs.multipliers` computes itself.
+        self.mass = np.array([b.mass for b in system.bodies], dtype=float)
+        self.inertia = np.array([np.asarray(b.inertia, dtype=float) for b in system.bodies]).reshape(-1, 3, 3)
+        self.gravity = np.asarray(system.gravity, dtype=float)
+        self.has_applied = bool(system.loads or system.torques or system.springs
+                                or any(j.damping for j in system.joints))
 
     def _at(self, Q, pose: Pose, body: int, P, force) -> None:
         """A force at world point P on a body (ground: nothing)."""
@@ -67,7 +66,7 @@ class AppliedForces:
 
     def generalised(self, pose: Pose, w: np.ndarray, t: np.ndarray, J: np.ndarray | None = None) -> np.ndarray:
         """Q at N instants; J: the world inertias, if the caller has them."""
-        system, c = self.system, self.c
+        system = self.system
         N, nb = len(pose), len(system.bodies)
         Q = np.zeros((N, 6 * nb))
         g = np.asarray(system.gravity, dtype=float)
@@ -76,6 +75,21 @@ class AppliedForces:
             om = w[:, k, 3:]
             Q[:, 6 * k:6 * k + 3] += b.mass * g
             Q[:, 6 * k + 3:6 * k + 6] -= cross(om, np.einsum("nij,nj->ni", J[:, k], om))
+        self._add_applied(Q, pose, w, t)
+        return Q
+
+    def applied(self, pose: Pose, w: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """Q but its gravity and gyroscopic loads (the bodies' constant
+        loads, joint dampers and torques, spring-dampers); None where the
+        system has none of them."""
+        if not self.has_applied:
+            return None
+        Q = np.zeros((len(pose), self.c.n))
+        self._add_applied(Q, pose, w, t)
+        return Q
+
+    def _add_applied(self, Q: np.ndarray, pose: Pose, w: np.ndarray, t: np.ndarray) -> None:
+        system, c = self.system, self.c
         for load in system.loads:
             k = c.index[load.body]
             Q[:, 6 * k:6 * k + 3] += np.asarray(load.force, dtype=float)
@@ -92,7 +106,6 @@ class AppliedForces:
             self._couple(Q, bi, -T)
         for spring in system.springs:
             self._spring(Q, pose, w, spring)
-        return Q
 
     def _damper(self, Q, pose: Pose, w, j) -> None:
         c = self.c

@@ -7,7 +7,8 @@ over nodes, then at every requested instant, in batches:
 - positions: chord Newton from the nearest earlier node's second-order
   Taylor prediction (on the group for rotations), to the fixed point;
 - velocities Φq·w = −Φt, accelerations Φq·ẇ = γ, multipliers from
-  M·ẇ + Φqᵀ·λ = Q (`forces`): square solves with the independent rows.
+  M·ẇ + Φqᵀ·λ = Q (`forces`, `outputs`): square solves with the
+  independent rows.
 The independent rows are those of the assembly (`structure.kept_rows`)
 until their condition passes REPICK_CONDITION near some pose, where
 others are picked: a set of rows can turn singular where the whole
@@ -38,20 +39,21 @@ import numpy as np
 import pandas as pd
 
 from mechval.reference.planar.constraints import MechanismError
-from mechval.reference.spatial.forces import AppliedForces, mass_times, world_inertia
+from mechval.reference.spatial.forces import AppliedForces
 from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.resultants import resultant_columns
-from mechval.reference.spatial.rotation import cross, exp_map, matrix_to_quaternion
-from mechval.reference.spatial import chord, motion
+from mechval.reference.spatial.rotation import exp_map
+from mechval.reference.spatial import chord, motion, outputs
 from mechval.reference.spatial.structure import (CHORD, NEWTON_ITERATIONS, ROUNDING, STAGNATION, Scaling, Structure,
                                                  initial_pose, kept, kept_rows, newton, refuse_unclosed, structure)
 from mechval.reference.spatial.system import SpatialSystem
 
 #: Instants per batch: a batch's Jacobians and factors (28 KB an instant
 #: for the delta robot) are read back by the multipliers and reactions,
-#: nearer the cache in smaller batches (tests/bench/spatial_bench.py).
-CHUNK = 1 << 10
+#: nearer the cache in smaller batches; fewer batches, less Python
+#: between them (tests/bench/spatial_bench.py compares sizes).
+CHUNK = 1 << 9
 #: See `mechval.reference.planar.solver.UNIQUE_TOL`.
 UNIQUE_TOL = 1e-8
 #: Continuation: a node's prediction may miss its solution by this much
@@ -101,33 +103,31 @@ class State:
 
 
 def rates(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
-          scaling: Scaling, extra: np.ndarray | None = None) -> State:
+          scaling: Scaling) -> State:
     """Velocities, accelerations and multipliers at solved positions by the
     kept rows' Jacobian, factorised once per instant for the three solves
-    and its condition (`motion`, compiled); `extra`: Q on top of the
-    applied forces."""
+    and its condition (`motion`, compiled)."""
     joint, shape, first, second = c.table_rows
     jac, factors, piv, w, dw, condition = motion.velocities(
         np.ascontiguousarray(pose.G), np.ascontiguousarray(pose.A), c.laws(t), *c.table_joints, shape, joint, first,
         second, np.array(rows, dtype=np.int64), scaling.row, scaling.column)
-    return multipliers(c, forces, pose, t, rows, jac, factors, piv, w, dw, condition, extra)
+    return multipliers(c, forces, pose, t, rows, jac, factors, piv, w, dw, condition)
 
 
 def multipliers(c: Constraints, forces: AppliedForces, pose: Pose, t: np.ndarray, rows: tuple[int, ...],
                 jac: np.ndarray, factors: np.ndarray, piv: np.ndarray, w: np.ndarray, dw: np.ndarray,
-                condition: np.ndarray, extra: np.ndarray | None = None) -> State:
+                condition: np.ndarray) -> State:
     """The State from `motion`'s outputs: λ from M·ẇ + Φqᵀ·λ = Q by the
-    kept rows' factors, transposed."""
+    kept rows' factors, transposed (`outputs.multipliers`)."""
     if not np.isfinite(condition).all():
         raise np.linalg.LinAlgError("Singular matrix")
-    nb = len(c.bodies)
-    lu = LU.from_factors(factors, piv)
-    w, dw = w.reshape(len(t), nb, 6), dw.reshape(len(t), nb, 6)
-    J = world_inertia(c.system, pose)
-    Q = forces.generalised(pose, w, t, J) + (0 if extra is None else extra)
-    lam = np.zeros((len(t), c.m))
-    lam[:, list(rows)] = lu.solve_transposed(Q - mass_times(c.system, pose, dw, J))
-    return State(t, pose, w, dw, lam, jac, tuple(rows), lu, condition)
+    N, nb = len(t), len(c.bodies)
+    applied = forces.applied(pose, w.reshape(N, nb, 6), t)
+    lam = np.zeros((N, c.m))
+    outputs.multipliers(factors, piv, np.ascontiguousarray(pose.A), w, dw, forces.mass, forces.inertia, forces.gravity,
+                        np.empty((0, c.n)) if applied is None else applied, np.array(rows, dtype=np.int64), lam)
+    return State(t, pose, w.reshape(N, nb, 6), dw.reshape(N, nb, 6), lam, jac, tuple(rows),
+                 LU.from_factors(factors, piv), condition)
 
 
 class SpatialSolver:
@@ -138,6 +138,13 @@ class SpatialSolver:
         self.c = Constraints(system)
         self.forces = AppliedForces(self.c)
         self.scaling = Scaling(self.c)
+        c = self.c
+        self._com = np.array([np.asarray(b.com, dtype=float) for b in system.bodies]).reshape(-1, 3)
+        #: `outputs.reaction_columns`' table: the joints' ends and arms, their rows, the drives' rows.
+        self._reaction_table = (*c.table_joints[:2],
+                                *(np.array([getattr(c.joint_rows[j.name], end) for j in system.joints], dtype=np.int64)
+                                  for end in ("start", "stop")),
+                                np.array([c.drive_rows[d.name] for d in system.drives], dtype=np.int64))
         #: Per thread, `march`'s Jacobians and factors: a batch's are read
         #: before that thread marches its next.
         self._buffers = threading.local()
@@ -251,10 +258,8 @@ class SpatialSolver:
                                              "the continuation's prediction: a branch point or near-singular position")
             state = multipliers(self.c, self.forces, pose, tt, rows, *solved)
             condition[index] = state.condition
-            # a run of instants (as every batch but near a change of rows): a slice, faster than a gather
-            place = slice(index[0], index[-1] + 1) if index[-1] - index[0] == len(index) - 1 else index
-            table[0, place] = tt
-            table[1:, place] = self._columns(state)
+            table[0, index] = tt
+            self._columns(state, reactions, table[1:], index)
             if found.redundant and reactions:    # −Φqᵀ·λ per body: unique however λ is split
                 resultants[:, index] = -np.einsum("nrk,nr->kn", state.jac, state.lam)
                 return self._undetermined(state)
@@ -345,38 +350,35 @@ class SpatialSolver:
             flags[1:] = self._undetermined(s)
         return self.finish(table, flags, found, -np.einsum("nrk,nr->kn", s.jac, s.lam), reactions)
 
-    def _columns(self, s: State, reactions: bool = True) -> np.ndarray:
-        values = []
-        for k, body in enumerate(self.system.bodies):
-            A = s.pose.A[:, k]
-            arm = A @ np.asarray(body.com, dtype=float)       # G − O
-            om, al = s.w[:, k, 3:], s.dw[:, k, 3:]
-            origin = s.pose.G[:, k] - arm
-            v = s.w[:, k, :3] - cross(om, arm)
-            a = s.dw[:, k, :3] - cross(al, arm) - cross(om, cross(om, arm))
-            values += [*origin.T, *matrix_to_quaternion(A).T, *v.T, *om.T, *a.T, *al.T]
+    def _columns(self, s: State, reactions: bool = True, out: np.ndarray | None = None,
+                 index: np.ndarray | None = None) -> np.ndarray:
+        """The raw columns after t (motion, then reactions unless not
+        `reactions`), (columns, N); or into the columns `index` of `out`
+        (the solution's table, C-ordered: its rows after t)."""
+        N, motion = len(s.t), len(self.system.motion_columns())
+        if out is None:
+            out = np.empty((motion + (len(self.system.reaction_columns()) if reactions else 0), N))
+            index = np.arange(N)
+        outputs.motion_columns(*(np.ascontiguousarray(x) for x in (s.pose.G, s.pose.A, s.w.reshape(N, -1),
+                                                                   s.dw.reshape(N, -1))),
+                               self._com, out[:motion], index)
         if reactions:
-            values += list(self.reactions(s, s.lam))
-        return np.array(values)
+            self.reactions(s, s.lam, True, out[motion:], index)
+        return out
 
-    def reactions(self, s: State, lam: np.ndarray, applied: bool = True) -> np.ndarray:
-        """Raw reaction columns from multipliers `lam`, (columns, N): linear
-        in them but for the joint torques' applied values (zeros unless
-        `applied`)."""
-        c, values = self.c, []
-        for j in self.system.joints:
-            rows = c.joint_rows[j.name]
-            bi, si, bj, sj = c.ends[j.name]
-            Pj = c.point(s.pose, None, bj, sj).value
-            body, sign = (bj, 1.0) if bj >= 0 else (bi, -1.0)
-            load = -np.einsum("nrk,nr->nk", s.jac[:, rows, 6 * body:6 * body + 6], lam[:, rows])
-            F, N = sign * load[:, :3], sign * load[:, 3:]
-            M = N - cross(Pj - s.pose.G[:, body], F)
-            values += [*F.T, *M.T]
-        values += [-lam[:, c.drive_rows[d.name]] for d in self.system.drives]
-        values += [np.asarray(tq.law.value(s.t), dtype=float) + 0 * s.t if applied else 0 * s.t
-                   for tq in self.system.torques]
-        return np.array(values)
+    def reactions(self, s: State, lam: np.ndarray, applied: bool = True, out: np.ndarray | None = None,
+                  index: np.ndarray | None = None) -> np.ndarray:
+        """Raw reaction columns from multipliers `lam`, (columns, N) (or
+        into `out`'s columns `index`, as `_columns`): linear in them but for
+        the joint torques' applied values (zeros unless `applied`)."""
+        if out is None:
+            out, index = np.empty((len(self.system.reaction_columns()), len(s.t))), np.arange(len(s.t))
+        outputs.reaction_columns(*(np.ascontiguousarray(x) for x in (s.pose.G, s.pose.A, s.jac, lam)),
+                                 *self._reaction_table, out, index)
+        first = len(self.system.reaction_columns()) - len(self.system.torques)
+        for k, tq in enumerate(self.system.torques):
+            out[first + k, index] = np.asarray(tq.law.value(s.t), dtype=float) if applied else 0.0
+        return out
 
     def _undetermined(self, s: State) -> np.ndarray:
         """Per raw column (motion ones never): does a null vector of Φqᵀ reach it?"""

@@ -19,12 +19,14 @@ the connect timeout fails the tasks still waiting, so a run never hangs.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import multiprocessing
 import os
 import signal
 import threading
 import time
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from typing import Any, Callable, Protocol, Sequence
@@ -64,7 +66,13 @@ class Executor(Protocol):
 class LocalExecutor:
     """Worker processes on this machine (pebble), a fresh one per task: no
     engine state leaks from one task into the next, and a crash is charged
-    to the one task whose process died."""
+    to the one task whose process died.
+
+    At most `workers` tasks run at once, and one more process is forked
+    ahead, waiting: a task that ends hands its slot to that one at once,
+    while pebble forks the next in the background (else a slot idles
+    while the pool notices the exit and forks, from a parent of several
+    hundred MB: tests/bench/worker_overhead_bench.py prints it)."""
 
     def __init__(self, workers: int, timeout: float):
         self.workers, self.timeout = workers, timeout
@@ -81,26 +89,35 @@ class LocalExecutor:
 
     def _run(self, fn, items, on_done) -> list[Done]:
         results: list[Done] = []
-        pool = ProcessPool(max_workers=self.workers, max_tasks=1, initializer=die_with_parent,
+        pool = ProcessPool(max_workers=self.workers + 1, max_tasks=1, initializer=die_with_parent,
                            initargs=(os.getpid(),))
+        waiting = collections.deque(enumerate(items))      # not yet given to the pool
+        running: dict[Future, int] = {}
+        ended: dict[int, Done] = {}
+        count = len(items)
+
+        def start() -> None:
+            while waiting and len(running) < self.workers:
+                index, item = waiting.popleft()
+                running[pool.schedule(fn, args=(item,), timeout=self.timeout)] = index
+
         try:
-            futures = [pool.schedule(fn, args=(item,), timeout=self.timeout) for item in items]
-            index = 0
-            while index < len(futures):
-                future = futures[index]
-                try:
-                    done = Done(future.result())
-                except FutureTimeout:
-                    done = Done(error=f"timed out after {self.timeout:g} s (worker killed)")
-                except ProcessExpired as exc:
-                    done = Done(error=f"worker crashed (exit code {exc.exitcode})")
-                except Exception as exc:  # the task's own error, reported as data
-                    done = Done(error=_describe(exc))
+            start()
+            while len(results) < count:
+                index = len(results)
+                if index not in ended:          # the next in order still runs: the first to end frees a slot
+                    finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                    for future in finished:
+                        ended[running.pop(future)] = self._done(future)
+                    start()
+                    continue
+                done = ended.pop(index)
                 results.append(done)
                 with FORK_GUARD:
                     more = on_done(index, done) or ()
-                futures += [pool.schedule(fn, args=(item,), timeout=self.timeout) for item in more]
-                index += 1
+                waiting.extend(enumerate(more, start=count))
+                count += len(more)
+                start()
         except BaseException:
             # Interrupted (Ctrl-C, SIGTERM) or a failure here: stop now.
             # pebble's close() would wait for the busy workers to finish.
@@ -109,6 +126,16 @@ class LocalExecutor:
         pool.close()
         pool.join()
         return results
+
+    def _done(self, future: Future) -> Done:
+        try:
+            return Done(future.result())
+        except FutureTimeout:
+            return Done(error=f"timed out after {self.timeout:g} s (worker killed)")
+        except ProcessExpired as exc:
+            return Done(error=f"worker crashed (exit code {exc.exitcode})")
+        except Exception as exc:  # the task's own error, reported as data
+            return Done(error=_describe(exc))
 
 
 #: Held while this process handles a finished item (`on_done`: plans

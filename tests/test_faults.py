@@ -476,3 +476,31 @@ def test_no_worker_is_forked_while_the_parent_handles_a_result():
     start = time.monotonic()
     done = LocalExecutor(2, timeout=20.0).run(takes_the_shared_lock, list(range(12)), held)
     assert [d.value for d in done] == list(range(12)) and time.monotonic() - start < 15
+
+
+def sleeps_and_says_when(item: tuple[int, float]) -> tuple[int, float, float]:
+    """A task of `item[1]` s: its number, when it started and when it ended."""
+    start = time.time()
+    time.sleep(item[1])
+    return item[0], start, time.time()
+
+
+def test_the_local_pool_runs_at_most_its_workers_at_once_and_reports_in_order():
+    """One process waits forked ahead of the busy ones (`LocalExecutor`):
+    it takes a slot as one frees, never a third slot. Tasks that end out of
+    order are handed on in the items' order, and what on_done adds runs too."""
+    from mechval.harness.executors import LocalExecutor
+
+    seen = []
+
+    def later(index, done):
+        seen.append(index)
+        return [(100 + index, 0.05)] if index < 2 else []
+
+    items = [(k, 0.3 if k % 3 == 0 else 0.05) for k in range(9)]     # some end before those started earlier
+    done = LocalExecutor(2, timeout=20.0).run(sleeps_and_says_when, items, later)
+    assert seen == list(range(11))
+    assert [d.value[0] for d in done] == list(range(9)) + [100, 101]
+    spans = [d.value[1:] for d in done]
+    for start, _ in spans:      # at each start, how many tasks run (itself included)
+        assert sum(s <= start < e for s, e in spans) <= 2

@@ -124,8 +124,8 @@ def print_ratios(rows: list[tuple[str, float, float, float]], engine_cpu: float,
           f"findings) {alongside_cpu:.1f} s; the workers' CPU in all {phase[3]:.1f} s, the parent's {phase[2]:.1f} s")
     print(f"whole run / engine phase: measured {total / phase[1]:.2f}, quiet-machine estimate "
           f"{quiet_total / quiet_phase:.2f} (goal ≤ 1.15)")
-    print(f"engine phase / (tasks' CPU / workers): measured {phase[1] / (task_cpu / workers):.2f}, quiet-machine "
-          f"estimate {quiet_phase / (task_cpu / workers):.2f} (goal ≤ 1.1); against the engine runs' CPU alone: "
+    print(f"engine phase / (tasks' CPU / workers): measured {phase[1] / (task_cpu / workers):.3f}, quiet-machine "
+          f"estimate {quiet_phase / (task_cpu / workers):.3f} (goal ≤ 1.1); against the engine runs' CPU alone: "
           f"measured {phase[1] / (engine_cpu / workers):.2f}, estimate {quiet_phase / (engine_cpu / workers):.2f}")
 
 

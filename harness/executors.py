@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import functools
 import os
 import threading
 import time
@@ -90,7 +89,8 @@ class LocalExecutor:
 
     def _run(self, fn, items, on_done) -> list[Done]:
         results: list[Done] = []
-        pool, zygote = self._pool()
+        zygote = Zygote()               # it forks the workers, and they die with it
+        pool = ProcessPool(max_workers=self.workers + 1, max_tasks=1, context=zygote)
         waiting = collections.deque(enumerate(items))      # not yet given to the pool
         running: dict[Future, int] = {}
         ended: dict[int, Done] = {}
@@ -127,12 +127,6 @@ class LocalExecutor:
         pool.join()
         zygote.close()
         return results
-
-    def _pool(self) -> tuple[ProcessPool, Zygote]:
-        zygote = Zygote()               # it forks the workers, and they die with it
-        pool = ProcessPool(max_workers=self.workers + 1, max_tasks=1, context=zygote)
-        zygote.busy = functools.partial(_runs_a_task, pool)
-        return pool, zygote
 
     def _done(self, future: Future) -> Done:
         try:
@@ -172,15 +166,6 @@ def _polling(interval: float):
         yield
     finally:
         PEBBLE.sleep_unit = before
-
-
-def _runs_a_task(pool: ProcessPool, pid: int) -> bool:
-    """Whether pebble's record has a task running on worker `pid` (read
-    from pebble's internals: its tasks and the worker each started on)."""
-    for _ in range(10):         # pebble's threads may change the record meanwhile
-        with contextlib.suppress(RuntimeError):
-            return any(task.worker_id == pid for task in list(pool._pool_manager.task_manager.tasks.values()))
-    return True
 
 
 def _stop_now(pool: ProcessPool, zygote: Zygote) -> None:

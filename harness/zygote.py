@@ -55,21 +55,14 @@ class Zygote:
         self._fork = multiprocessing.get_context("fork")
         self._lock = threading.Lock()        # one fork request at a time
         self._started: queue.Queue[int] = queue.Queue()
-        self._gone = threading.Event()
         self._ended: dict[int, int] = {}
         #: The live workers' pidfds: a signal through one cannot reach another
         #: process that took the PID meanwhile (they are not our children).
-        #: None where there are no pidfds (not Linux): signals go by PID.
-        self._handles: dict[int, int | None] = {}
+        self._handles: dict[int, int] = {}
         self._changed = threading.Condition()
         self._socket: socket.socket | None = None
         self._pid = 0
         self._work: tuple | None = None
-        #: Whether a worker runs a task (the pool's record): one that dies
-        #: with its zygote then ends with SIGKILL's code, an idle one with 0
-        #: (pebble takes an idle worker's abnormal end while no task runs
-        #: for a broken pool).
-        self.busy: Callable[[int], bool] = lambda pid: True
 
     def Pipe(self, duplex: bool = True):  # noqa: N802 (multiprocessing's names)
         return self._fork.Pipe(duplex)
@@ -87,27 +80,22 @@ class Zygote:
     # -- the zygote ------------------------------------------------------------------------------
 
     def fork(self, work: tuple) -> int:
-        """A new worker running `work` (target, args, kwargs); its PID. A
-        zygote that has died (killed from outside: its workers died with
-        it and count as killed) is replaced by a new copy of this process."""
+        """A new worker running `work` (target, args, kwargs); its PID."""
         with self._lock:
-            if self._work is not None and work != self._work:
+            if self._work is None:
+                self._begin(work)
+            elif work != self._work:
                 raise RuntimeError("a zygote forks one pool's workers only")
-            for _ in range(2):
-                if self._socket is None or self._gone.is_set():
-                    self._begin(work)
-                with contextlib.suppress(OSError):     # it has died: its listener says so next
-                    self._socket.sendall(b"F")
-                try:
-                    pid = self._started.get(timeout=START_TIMEOUT)
-                except queue.Empty as exc:
-                    raise OSError(f"the worker zygote did not fork within {START_TIMEOUT:g} s") from exc
-                if pid > 0:
-                    return pid
-            raise OSError("the worker zygote died twice in a row")
+            try:
+                self._socket.sendall(b"F")
+                pid = self._started.get(timeout=START_TIMEOUT)
+            except (OSError, queue.Empty) as exc:
+                raise OSError(f"the worker zygote did not fork: {exc}") from exc
+            if pid <= 0:
+                raise OSError("the worker zygote has ended")
+            return pid
 
     def _begin(self, work: tuple) -> None:
-        self.close()                # a dead zygote's: reaped
         parent, child = socket.socketpair()
         main = os.getpid()
         pid = os.fork()
@@ -124,16 +112,11 @@ class Zygote:
                 os._exit(code)
         child.close()
         self._socket, self._pid, self._work = parent, pid, work
-        self._gone = threading.Event()
-        self._started = queue.Queue()
-        threading.Thread(target=self._listen, args=(parent, self._gone, self._started), name="worker zygote",
-                         daemon=True).start()
+        threading.Thread(target=self._listen, name="worker zygote", daemon=True).start()
 
-    def _listen(self, connection: socket.socket, gone: threading.Event, started: queue.Queue) -> None:
-        """One zygote's reports, until it ends; then its live workers count
-        as killed (they die with it)."""
-        stream = connection.makefile("rb")
-        mine: set[int] = set()
+    def _listen(self) -> None:
+        """The zygote's reports, until it ends."""
+        stream = self._socket.makefile("rb")
         while True:
             try:
                 data = stream.read(MESSAGE.size)
@@ -142,59 +125,53 @@ class Zygote:
             if len(data) < MESSAGE.size:
                 break
             kind, pid, code = MESSAGE.unpack(data)
-            with self._changed:
-                if kind == b"P":
+            if kind == b"P":
+                with self._changed:
                     self._ended.pop(pid, None)      # a PID used before
-                    self._handles[pid] = _open(pid)
-                    mine.add(pid)
-                    started.put(pid)
-                else:
+                    with contextlib.suppress(OSError):      # ended already
+                        self._handles[pid] = os.pidfd_open(pid)
+                self._started.put(pid)
+            else:
+                with self._changed:
                     self._ended[pid] = code
-                    _close(self._handles.pop(pid, None))
+                    if pid in self._handles:
+                        os.close(self._handles.pop(pid))
                     self._changed.notify_all()
-        with self._changed:
-            live = mine & self._handles.keys()
-        codes = {pid: -signal.SIGKILL if self.busy(pid) else 0 for pid in live}     # outside our lock: pebble's
-        with self._changed:
-            gone.set()
-            self._end(codes)
-        started.put(0)
-
-    def _end(self, codes: dict[int, int]) -> None:
-        """These live workers ended with these codes (their zygote is gone,
-        and they with it); call with the lock held."""
-        for pid, code in codes.items():
-            if pid in self._handles:
-                self._ended[pid] = code
-                _close(self._handles.pop(pid))
-        self._changed.notify_all()
+        with self._changed:                     # the zygote is gone, and its workers with it
+            self._ended[-1] = -signal.SIGKILL
+            self._changed.notify_all()
+        self._started.put(0)
 
     def exitcode(self, pid: int) -> int | None:
         with self._changed:
-            return self._ended.get(pid)
+            if pid in self._ended:
+                return self._ended[pid]
+            return self._ended.get(-1)
 
     def send(self, pid: int, signum: int) -> None:
         """Signal a live worker."""
         with self._changed:
             if pid in self._handles:
-                _send(pid, self._handles[pid], signum)
+                with contextlib.suppress(OSError):        # ended, not yet reported
+                    signal.pidfd_send_signal(self._handles[pid], signum)
 
     def join(self, pid: int, timeout: float | None) -> None:
         with self._changed:
-            self._changed.wait_for(lambda: pid in self._ended, timeout)
+            self._changed.wait_for(lambda: pid in self._ended or -1 in self._ended, timeout)
 
     def close(self) -> None:
         """End the zygote (its workers, if any, with it) and reap it."""
-        if self._socket is None:
-            return
-        with contextlib.suppress(OSError):
-            self._socket.shutdown(socket.SHUT_RDWR)
-        self._socket.close()
-        with contextlib.suppress(ChildProcessError):
-            os.waitpid(self._pid, 0)
-        self._socket = None
-        with self._changed:
-            self._end(dict.fromkeys(self._handles, -signal.SIGKILL))
+        if self._socket is not None:
+            with contextlib.suppress(OSError):
+                self._socket.shutdown(socket.SHUT_RDWR)
+            self._socket.close()
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(self._pid, 0)
+            self._socket = None
+            with self._changed:
+                for handle in self._handles.values():
+                    os.close(handle)
+                self._handles.clear()
 
     def kill(self) -> None:
         """SIGKILL the workers, wait until they are gone (as a parent's
@@ -203,35 +180,15 @@ class Zygote:
         if self._socket is None:
             return
         with self._changed:
-            for pid, handle in self._handles.items():
-                _send(pid, handle, signal.SIGKILL)
-            for handle in self._handles.values():
-                if handle is not None:
-                    select.select([handle], [], [], KILL_WAIT)   # readable once the process has ended
+            handles = list(self._handles.values())
+            for handle in handles:
+                with contextlib.suppress(OSError):        # ended already
+                    signal.pidfd_send_signal(handle, signal.SIGKILL)
+            for handle in handles:
+                select.select([handle], [], [], KILL_WAIT)   # readable once the process has ended
         with contextlib.suppress(ProcessLookupError):
             os.kill(self._pid, signal.SIGKILL)
         self.close()
-
-
-def _open(pid: int) -> int | None:
-    """A pidfd for a worker (Linux 5.3 on), or None: then signals go by PID."""
-    try:
-        return os.pidfd_open(pid)
-    except (AttributeError, OSError):
-        return None
-
-
-def _send(pid: int, handle: int | None, signum: int) -> None:
-    with contextlib.suppress(OSError):        # ended, not yet reported
-        if handle is None:
-            os.kill(pid, signum)
-        else:
-            signal.pidfd_send_signal(handle, signum)
-
-
-def _close(handle: int | None) -> None:
-    if handle is not None:
-        os.close(handle)
 
 
 def _serve(requests: socket.socket, work: tuple, context) -> None:

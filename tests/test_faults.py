@@ -526,26 +526,3 @@ def test_the_local_pool_forks_from_a_zygote_not_from_the_main_process():
     parents = {d.value[1] for d in done}
     assert FORKS_HERE.count(os.getpid()) == 1
     assert len(parents) == 1 and os.getpid() not in parents
-
-
-def kills_its_zygote_at_3(item: int) -> int:
-    if item == 3:
-        os.kill(os.getppid(), signal.SIGKILL)       # the zygote: this worker dies with it
-        time.sleep(30)
-    time.sleep(0.1)         # the items after 4 start after the kill
-    return item
-
-
-def test_a_killed_zygote_fails_only_the_runs_it_took_and_is_replaced():
-    """The zygote killed from outside takes its live workers with it: their
-    tasks are failed rows with the reason, and the tasks after them run on
-    workers of a new zygote; nothing hangs."""
-    from mechval.harness.executors import LocalExecutor
-
-    start = time.monotonic()
-    done = LocalExecutor(2, timeout=20.0).run(kills_its_zygote_at_3, list(range(10)))
-    assert time.monotonic() - start < 15
-    assert "crashed" in done[3].error
-    assert all(d.value == k for k, d in enumerate(done) if not d.error)
-    assert {k for k, d in enumerate(done) if d.error} <= {2, 3, 4}      # those running, or waiting forked, then
-    assert all("crashed" in d.error for d in done if d.error)

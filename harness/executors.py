@@ -6,8 +6,7 @@ else, and returns one `Done` per item in the items' order: the value, or the
 reason there is none (the exception, a crashed worker, a timeout) as text,
 so a failing task is data and never stops the others. The local pool is
 pebble's (as `mechval.harness.runner`): a task that hangs past the timeout is
-killed, a worker that crashes is replaced, the workers (forked by a
-zygote, `zygote`) die with the parent
+killed, a worker that crashes is replaced, the workers die with the parent
 (`interrupts.die_with_parent`), and an interrupted run kills them rather
 than waiting for them. On Dask, fn and its arguments travel pickled to the
 cluster's workers, which must have mechval installed; a running Dask task
@@ -22,7 +21,9 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import multiprocessing
 import os
+import signal
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, wait
@@ -32,9 +33,10 @@ from typing import Any, Callable, Protocol, Sequence
 
 from pebble import ProcessExpired, ProcessPool
 from pebble.common.types import CONSTS as PEBBLE
+from pebble.pool.process import WORKERS_NAME
 
 from .defaults import DASK_CONNECT_TIMEOUT
-from .zygote import Zygote
+from .interrupts import die_with_parent
 
 
 @dataclass(frozen=True)
@@ -64,15 +66,13 @@ class Executor(Protocol):
 class LocalExecutor:
     """Worker processes on this machine (pebble), a fresh one per task: no
     engine state leaks from one task into the next, and a crash is charged
-    to the one task whose process died. They are forked by a zygote, a
-    copy of this process made as the batch starts (`zygote`): this
-    process, which gathers the run's results, is not forked at each task.
+    to the one task whose process died.
 
     At most `workers` tasks run at once, and one more process is forked
     ahead, waiting: a task that ends hands its slot to that one at once,
-    while the next is forked in the background (else a slot idles while
-    the pool notices the exit and forks: tests/bench/
-    worker_overhead_bench.py prints it)."""
+    while pebble forks the next in the background (else a slot idles
+    while the pool notices the exit and forks, from a parent of several
+    hundred MB: tests/bench/worker_overhead_bench.py prints it)."""
 
     def __init__(self, workers: int, timeout: float):
         self.workers, self.timeout = workers, timeout
@@ -89,8 +89,8 @@ class LocalExecutor:
 
     def _run(self, fn, items, on_done) -> list[Done]:
         results: list[Done] = []
-        zygote = Zygote()               # it forks the workers, and they die with it
-        pool = ProcessPool(max_workers=self.workers + 1, max_tasks=1, context=zygote)
+        pool = ProcessPool(max_workers=self.workers + 1, max_tasks=1, initializer=die_with_parent,
+                           initargs=(os.getpid(),))
         waiting = collections.deque(enumerate(items))      # not yet given to the pool
         running: dict[Future, int] = {}
         ended: dict[int, Done] = {}
@@ -121,11 +121,10 @@ class LocalExecutor:
         except BaseException:
             # Interrupted (Ctrl-C, SIGTERM) or a failure here: stop now.
             # pebble's close() would wait for the busy workers to finish.
-            _stop_now(pool, zygote)
+            _stop_now(pool)
             raise
         pool.close()
         pool.join()
-        zygote.close()
         return results
 
     def _done(self, future: Future) -> Done:
@@ -141,12 +140,10 @@ class LocalExecutor:
 
 #: Held while this process handles a finished item (`on_done`: plans
 #: built, runs compared, the progress bar drawn) and around every fork
-#: (os.register_at_fork): pebble may fork (the zygote, as it replaces a
-#: worker the zygote has not forked yet) from its own thread, and a
-#: process forked while the main thread held a lock (a buffered stream's,
-#: a functools.cached_property's, numba's compiler lock) would inherit it
-#: held by a thread it does not have, and so would every worker forked
-#: from it, and wait for it forever.
+#: (os.register_at_fork): pebble forks each worker from its own thread,
+#: and a worker forked while the main thread held a lock (a buffered
+#: stream's, a functools.cached_property's, numba's compiler lock) would
+#: inherit it held by a thread it does not have and wait for it forever.
 FORK_GUARD = threading.RLock()
 os.register_at_fork(before=FORK_GUARD.acquire, after_in_parent=FORK_GUARD.release,
                     after_in_child=FORK_GUARD.release)
@@ -168,13 +165,18 @@ def _polling(interval: float):
         PEBBLE.sleep_unit = before
 
 
-def _stop_now(pool: ProcessPool, zygote: Zygote) -> None:
+def _stop_now(pool: ProcessPool) -> None:
     """Stop the pool and SIGKILL its workers: an engine busy in C code does
     not act on SIGTERM, and pebble waits 3 s per worker before killing it.
     Engine state is disposable, so nothing is lost."""
     pool.stop()
-    zygote.kill()
+    for process in multiprocessing.active_children():
+        if process.name == WORKERS_NAME and process.pid is not None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(process.pid, signal.SIGKILL)
     pool.join()
+
+
 
 
 class SchedulerUnreachable(RuntimeError):

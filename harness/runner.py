@@ -272,11 +272,10 @@ def preparation_job(scenario: Scenario, engines: Sequence[str]) -> tuple[PeakRat
 
 def import_engines(engines: Iterable[str]) -> None:
     """Import each engine's adapter and library here, once: the local
-    pool's workers (one for each task, so that no engine state leaks from
-    one into the next) are forked from a copy of this process made as the
-    pool starts (`zygote`) and start with them imported, instead of each
-    paying for the imports in its run (measured 25 ms of CPU per run on
-    average, tests/bench/run_bench.py)."""
+    pool's workers are forked from this process (for each task, so that
+    no engine state leaks from one into the next) and start with them
+    imported, instead of each paying for the imports in its run (measured
+    25 ms of CPU per run on average, tests/bench/run_bench.py)."""
     for engine in engines:
         importlib.import_module(adapter(engine).library)
 

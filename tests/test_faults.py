@@ -504,25 +504,3 @@ def test_the_local_pool_runs_at_most_its_workers_at_once_and_reports_in_order():
     spans = [d.value[1:] for d in done]
     for start, _ in spans:      # at each start, how many tasks run (itself included)
         assert sum(s <= start < e for s, e in spans) <= 2
-
-
-FORKS_HERE: list[int] = []
-os.register_at_fork(before=lambda: FORKS_HERE.append(os.getpid()))
-
-
-def parent_pid(item: int) -> tuple[int, int]:
-    return item, os.getppid()
-
-
-def test_the_local_pool_forks_from_a_zygote_not_from_the_main_process():
-    """A batch forks this process once (the zygote); its workers, a fresh
-    one per task, are the zygote's children, so this process's pages are
-    not made copy-on-write again at every task (`harness.zygote`)."""
-    from mechval.harness.executors import LocalExecutor
-
-    FORKS_HERE.clear()
-    done = LocalExecutor(2, timeout=20.0).run(parent_pid, list(range(10)))
-    assert [d.value[0] for d in done] == list(range(10))
-    parents = {d.value[1] for d in done}
-    assert FORKS_HERE.count(os.getpid()) == 1
-    assert len(parents) == 1 and os.getpid() not in parents

@@ -69,11 +69,10 @@ class AppliedForces:
         system = self.system
         N, nb = len(pose), len(system.bodies)
         Q = np.zeros((N, 6 * nb))
-        g = np.asarray(system.gravity, dtype=float)
         J = world_inertia(system, pose) if J is None else J
         for k, b in enumerate(system.bodies):
             om = w[:, k, 3:]
-            Q[:, 6 * k:6 * k + 3] += b.mass * g
+            Q[:, 6 * k:6 * k + 3] += b.mass * self.gravity
             Q[:, 6 * k + 3:6 * k + 6] -= cross(om, np.einsum("nij,nj->ni", J[:, k], om))
         self._add_applied(Q, pose, w, t)
         return Q

@@ -127,8 +127,9 @@ def motion_columns(G, A, w, dw, com, out, index):
 @kernel
 def reaction_columns(G, A, jac, lam, ends, arms, starts, stops, drives, out, index):
     """Per joint its 6 `system.REACTION` columns, then per drive its effort
-    −λ, into out (6·joints + drives, ≥ N), instant i at column index[i]: the load −Φqᵀ·λ of the joint's
-    rows (starts[j] to stops[j]) on body_j (ends[j, 1]), or the opposite of
+    −λ, into out (6·joints + drives, ≥ N), instant i at column index[i]:
+    the load −Φqᵀ·λ of the joint's rows (starts[j] to stops[j]) on body_j
+    (ends[j, 1]), or the opposite of
     the one on body_i (ends[j, 0]) where body_j is the ground, its moment
     taken about Pj (body_j's point arms[j, 1] from its centre of mass, or
     a world point on the ground)."""

@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.linalg import qr
 
 from mechval.model.drive import DriveLaw
 from mechval.model.mechanism import GROUND
 from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.lu import LU
 from mechval.reference.spatial.rotation import exp_map, frame_from_axis
-from mechval.reference.spatial.structure import moved
+from mechval.reference.spatial.structure import Scaling, initial_pose, moved, newton, pivoted_rows
 from mechval.reference.spatial.system import JOINT_KINDS, SpatialBody, SpatialDrive, SpatialJoint, SpatialSystem
+from spatial_benchmarks import Bricard
 from spatial_mechanisms import inertia
 
 #: Central differences with step H: truncation ~H² times the rows' third
@@ -166,3 +168,26 @@ def test_a_batch_carried_from_instant_to_instant_closes_its_rows_to_rounding(mon
     SpatialSolver(SphericalFourBar().system).solve(np.linspace(0.0, 1.0, 4096))
     closing = np.concatenate(residuals)
     assert len(closing) == 4096 and closing.max() <= 8 * np.finfo(float).eps
+
+
+def test_the_kept_rows_do_not_hang_on_the_last_bits():
+    """`structure.pivoted_rows` picks the rows LAPACK's pivoted QR would,
+    but a tie between rows (exact in a symmetric mechanism: Bricard's)
+    goes to the first, so the rounding a machine's BLAS kernels leave
+    (perturbations of a few eps here) does not change which rows are
+    kept; and its pick is QR's where nothing ties: independent rows, as
+    many as the rank, of a well-conditioned set."""
+    c = Constraints(Bricard().system)
+    scaling = Scaling(c)
+    pose = newton(c, scaling, initial_pose(c), np.zeros(1), None)
+    J = scaling.jacobian(c.evaluate(pose, np.zeros(1))["jac"][0])
+    picked = pivoted_rows(J, 29)
+    assert len(set(picked)) == 29 and np.linalg.matrix_rank(J[picked]) == 29
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        noisy = J * (1 + 4 * np.finfo(float).eps * rng.standard_normal(J.shape))
+        assert pivoted_rows(noisy, 29) == picked
+    s = np.linalg.svd(J[picked], compute_uv=False)
+    assert s[0] / s[-1] < 100, s[0] / s[-1]
+    generic = rng.standard_normal((6, 6))
+    assert sorted(pivoted_rows(generic, 4)) == sorted(qr(generic.T, pivoting=True)[2][:4].tolist())

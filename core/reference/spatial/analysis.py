@@ -11,8 +11,9 @@ the mechanism's structure and of how near it comes to a singular position
 - the condition number of the scaled Jacobian the reference solves with
   over the run: a prescribed scene's square one (`SpatialSolution.
   condition`, 1-norm) at ≥ 2001 instants; a torque-driven or free scene's
-  kept joint and drive rows (σmax/σmin: the rows stay independent while
-  it is finite) at the file's samples of the integrated motion;
+  joint and drive rows (σmax over the σ of the rank the assembly found:
+  the rows keep that rank while it is finite) at the file's samples of
+  the integrated motion;
 - near-singular instants: where that condition peaks (the run's ends
   included) at more than NEAR_SINGULAR times its median over the run.
 """
@@ -84,20 +85,23 @@ def analyse_spatial(scenario: Scenario, samples: int | None = None) -> SpatialAn
 
 
 def _kept_rows_condition(system: SpatialSystem, frame, rows: tuple[int, ...]) -> np.ndarray | None:
-    """σmax/σmin of the scaled Jacobian of the kept rows at the states of
-    an integrated run (None without constraints)."""
+    """σmax/σr of the scaled Jacobian of all rows, r = the independent
+    rows' count, at the states of an integrated run (None without
+    constraints): without redundant rows the kept rows' σmax/σmin; with
+    them, the condition of the best pick's, whichever rows the dynamics
+    keeps (it picks afresh as they turn dependent)."""
     if not rows:
         return None
     c = Constraints(system)
     scaling = Scaling(c)
     pose = body_state(system, frame)[0]
-    J = c.evaluate(pose, frame["t"].to_numpy())["jac"][:, list(rows)]
-    s = np.linalg.svd(J * scaling.row[list(rows), None] * scaling.column, compute_uv=False)
-    return s[:, 0] / s[:, -1]
+    J = c.evaluate(pose, frame["t"].to_numpy())["jac"]
+    s = np.linalg.svd(J * scaling.row[:, None] * scaling.column, compute_uv=False)
+    return s[:, 0] / s[:, len(rows) - 1]
 
 
 def format_spatial_analysis(a: SpatialAnalysis, max_instants: int = 12) -> str:
-    how = ("integrated (torque-driven or free): the kept rows' σmax/σmin at the file's samples" if a.integrated
+    how = ("integrated (torque-driven or free): all rows' σmax/σ_rank at the file's samples" if a.integrated
            else "prescribed: the square Jacobian's 1-norm condition")
     lines = [
         f"scenario            {a.scenario} (spatial: {a.bodies} bodies, {a.joints} joints, "

@@ -6,7 +6,10 @@ Equations (Nikravesh 1988, §11.6; Haug 1989, ch. 11): per body
 M·ẇ + Φqᵀ·λ = Q (`forces`) with the joints' rows and any drives', and
 Φq·ẇ = γ; solved at every evaluation as one square system in (ẇ, λ)
 with the independent rows only (`structure`), so redundant rows cost
-nothing. The state integrated by scipy's DOP853 (Hairer, Nørsett &
+nothing; picked afresh where their condition grows past REPICK_GROWTH times the
+assembly's (a redundant mechanism's kept rows can turn dependent along
+the motion while all its rows keep their rank: Bricard's do for half
+the picks). The state integrated by scipy's DOP853 (Hairer, Nørsett &
 Wanner, *Solving ODEs I*, §II.10), or for stiff force elements its Radau
 IIA (implicit, order 5; *Solving ODEs II*, §IV.8) with a Jacobian by
 batched forward differences, is per body G, its unit quaternion
@@ -30,7 +33,7 @@ from mechval.reference.spatial.forces import AppliedForces, mass_matrix, world_i
 from mechval.reference.spatial.joints import Pose
 from mechval.reference.spatial.rotation import cross, matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
 from mechval.reference.spatial.solver import SpatialSolution, SpatialSolver, State
-from mechval.reference.spatial.structure import initial_pose, newton, structure
+from mechval.reference.spatial.structure import initial_pose, kept_rows, newton, structure
 from mechval.reference.spatial.system import SpatialSystem
 
 RTOL = 1e-12
@@ -40,6 +43,13 @@ METHODS = {
     "Radau": "Radau IIA (order 5, implicit) on (G, quaternion, Ġ, ω), constraints at the acceleration level "
              "(Nikravesh 1988, §11.6; Hairer & Wanner, Solving ODEs II, §IV.8)",
 }
+#: A redundant mechanism's kept rows are picked afresh where their scaled
+#: Jacobian's σmax/σmin grows past this multiple of its value at the
+#: assembly's pick: the drift of the acceleration-level constraints grows
+#: with it (tests/test_spatial_benchmarks.py bounds what it moves
+#: Bricard's trajectory), and a multiple, not a bound, leaves a mechanism
+#: ill-conditioned from the start to keep its rows.
+REPICK_GROWTH = 5.0
 #: Outputs evaluated at once after the integration (memory, not accuracy).
 OUTPUT_CHUNK = 2048
 #: Forward-difference step of the implicit method's Jacobian, relative to
@@ -84,6 +94,9 @@ class SpatialDynamics:
         pose = newton(c, self.solver.scaling, initial_pose(c), np.array([t0]), None)
         self.found = structure(c, self.solver.scaling, pose)
         self.rows = list(self.found.independent)
+        if self.found.redundant:
+            jac = c.evaluate(pose, np.array([t0]))["jac"]
+            self.assembly_condition = float(self._condition(jac, self.rows)[0])
         nb = len(system.bodies)
         w = np.zeros((1, nb, 6))
         for k, b in enumerate(system.bodies):
@@ -97,12 +110,13 @@ class SpatialDynamics:
             miss = J @ w[0].ravel() - out["rhs"][0, self.rows]
             w[0] = (w[0].ravel() - J.T @ np.linalg.solve(J @ J.T, miss)).reshape(nb, 6)
         self.t0, self.pose0, self.w0 = t0, pose, w
-        self.evaluations, self.calls, self.limit = 0, 0, None
+        self.evaluations, self.calls, self.limit, self.repicks = 0, 0, None, 0
 
     def accelerations(self, pose: Pose, w: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """ẇ (N, nb, 6) and λ (N, m) from the square system [M Φqᵀ; Φq 0]."""
-        c, rows, n = self.c, self.rows, self.c.n
+        c, n = self.c, self.c.n
         out = c.evaluate(pose, t, w)
+        rows = self._rows_for(out["jac"])
         J = out["jac"][:, rows]
         K = np.zeros((len(t), n + len(rows), n + len(rows)))
         K[:, :n, :n] = mass_matrix(self.system, pose)
@@ -112,6 +126,29 @@ class SpatialDynamics:
         lam = np.zeros((len(t), c.m))
         lam[:, rows] = x[:, n:]
         return x[:, :n].reshape(len(t), -1, 6), lam
+
+    def _rows_for(self, jac: np.ndarray) -> list[int]:
+        """The kept rows at states whose Jacobian is `jac` (N, m, n): those
+        kept so far, or, where their scaled Jacobian's σmax/σmin passes
+        REPICK_GROWTH times the assembly's at one of the states, rows
+        picked afresh at the worst (these become the kept ones). A
+        mechanism without redundant rows keeps all of them: nothing to
+        pick."""
+        if not self.found.redundant:
+            return self.rows
+        condition = self._condition(jac, self.rows)
+        if (condition > REPICK_GROWTH * self.assembly_condition).any():
+            scaled = jac * self.solver.scaling.row[:, None] * self.solver.scaling.column
+            worst = int(np.argmax(condition))
+            self.rows = list(kept_rows(self.c, scaled[worst], self.c.n - self.found.mobility))
+            self.repicks += 1
+        return self.rows
+
+    def _condition(self, jac: np.ndarray, rows: list[int]) -> np.ndarray:
+        """σmax/σmin of the scaled Jacobian's `rows`, per state."""
+        scaling = self.solver.scaling
+        s = np.linalg.svd(jac[:, rows] * scaling.row[rows, None] * scaling.column, compute_uv=False)
+        return s[:, 0] / s[:, -1]
 
     def _unpack(self, y: np.ndarray) -> tuple[Pose, np.ndarray]:
         """y (N, 13·nb) → pose and velocities."""
@@ -217,5 +254,6 @@ class SpatialDynamics:
         facts = {"method": METHODS[method], "rtol": rtol, "atol": atol, "steps": steps,
                  "evaluations": self.evaluations, "constraint_drift_max": float(drift_q),
                  "velocity_drift_max": float(drift_v), "energy_change_max": float(np.abs(E - E[0]).max()),
-                 "mobility": self.found.mobility, "redundant_constraints": self.found.redundant}
+                 "mobility": self.found.mobility, "redundant_constraints": self.found.redundant,
+                 "rows_picked_afresh": self.repicks}
         return SpatialSolution(frame, missing, self.found, facts)

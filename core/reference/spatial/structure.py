@@ -13,8 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import qr
-
 from mechval.reference.planar.constraints import MechanismError
 from mechval.reference.spatial.joints import Constraints, Pose
 from mechval.reference.spatial.lu import LU
@@ -33,6 +31,11 @@ NEWTON_ITERATIONS = 40
 CHORD = 8
 #: A closed loop's scaled residual (every row, redundant ones included).
 CLOSED = 1e-9
+#: Rows whose remaining norms lie within this fraction of the largest are
+#: a tie in the pivoted pick (`pivoted_rows`), taken in the rows' order: a
+#: symmetric mechanism has exact ties, and which of them a BLAS kernel's
+#: rounding favours must not decide the rows kept (Bricard's did).
+TIE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -154,14 +157,29 @@ def _rank(M: np.ndarray) -> int:
     return int((s > RANK_TOL * s[0]).sum()) if s[0] > 0 else 0
 
 
+def pivoted_rows(A: np.ndarray, count: int) -> list[int]:
+    """`count` rows of A picked as QR with column pivoting of Aᵀ would
+    (Golub & Van Loan 2013, §5.4.2: at each step the row whose part
+    orthogonal to those already picked is longest), but with ties (within
+    TIE) going to the first row, so the pick is the same on any machine."""
+    R = np.array(A, dtype=float)
+    picked: list[int] = []
+    for _ in range(count):
+        norms = np.sqrt(np.einsum("ij,ij->i", R, R))
+        norms[picked] = -1.0
+        k = int(np.flatnonzero(norms >= (1 - TIE) * norms.max())[0])
+        q = R[k] / norms[k]
+        R -= np.einsum("ij,j->i", R, q)[:, None] * q
+        picked.append(k)
+    return picked
+
+
 def kept_rows(c: Constraints, J: np.ndarray, joint_rank: int) -> tuple[int, ...]:
     """The rows the square solves keep at a pose whose scaled Jacobian is
-    J: `joint_rank` joint rows by QR with column pivoting of their Φqᵀ
-    (the best-conditioned set, Golub & Van Loan 2013, §5.4.2), then each
-    drive row that adds to the rank."""
+    J: `joint_rank` joint rows by `pivoted_rows` (the best-conditioned
+    set), then each drive row that adds to the rank."""
     joint_rows = [k for k, r in enumerate(c.rows) if r.kind != "drive"]
-    _, _, order = qr(J[joint_rows].T, pivoting=True, mode="economic") if joint_rows else (None, None, [])
-    keep = sorted(joint_rows[k] for k in order[:joint_rank])
+    keep = sorted(joint_rows[k] for k in pivoted_rows(J[joint_rows], joint_rank)) if joint_rows else []
     for k, r in enumerate(c.rows):
         if r.kind == "drive" and _rank(J[keep + [k]]) > len(keep):
             keep.append(k)
@@ -170,9 +188,8 @@ def kept_rows(c: Constraints, J: np.ndarray, joint_rank: int) -> tuple[int, ...]
 
 def structure(c: Constraints, scaling: Scaling, pose: Pose) -> Structure:
     """Rank of the joints' rows and of all rows at the assembled pose
-    (one instant), and the independent rows: QR with column pivoting of
-    the scaled Φqᵀ picks the best-conditioned set (Golub & Van Loan 2013,
-    §5.4.2), the joints' rows before the drives'."""
+    (one instant), and the independent rows (`kept_rows`), the joints'
+    rows before the drives'."""
     J = scaling.jacobian(c.evaluate(pose, np.zeros(1))["jac"][0])
     joint_rows = [k for k, r in enumerate(c.rows) if r.kind != "drive"]
 

@@ -5,8 +5,9 @@ Dask distributed cluster.
 else, and returns one `Done` per item in the items' order: the value, or the
 reason there is none (the exception, a crashed worker, a timeout) as text,
 so a failing task is data and never stops the others. The local pool is
-pebble's (as `mechval.harness.runner`): a task that hangs past the timeout is
-killed, a worker that crashes is replaced, the workers die with the parent
+pebble's, in a host process of its own (`pool_host`): a task that hangs
+past the timeout is killed, a worker that crashes is replaced, the
+workers die with the host and the host with the parent
 (`interrupts.die_with_parent`), and an interrupted run kills them rather
 than waiting for them. On Dask, fn and its arguments travel pickled to the
 cluster's workers, which must have mechval installed; a running Dask task
@@ -23,20 +24,16 @@ import collections
 import contextlib
 import multiprocessing
 import os
-import signal
-import threading
+import pickle
+import tempfile
 import time
-from concurrent.futures import FIRST_COMPLETED, Future, wait
-from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Protocol, Sequence
 
-from pebble import ProcessExpired, ProcessPool
-from pebble.common.types import CONSTS as PEBBLE
-from pebble.pool.process import WORKERS_NAME
-
+from . import pool_host
 from .defaults import DASK_CONNECT_TIMEOUT
-from .interrupts import die_with_parent
+from .pool_host import describe
 
 
 @dataclass(frozen=True)
@@ -47,10 +44,6 @@ class Done:
     error: str = ""
     #: The Dask worker that ran it (its address); "" for a local process.
     worker: str = ""
-
-
-def _describe(exc: BaseException) -> str:
-    return f"{type(exc).__name__}: {exc}"
 
 
 class Executor(Protocol):
@@ -71,8 +64,12 @@ class LocalExecutor:
     At most `workers` tasks run at once, and one more process is forked
     ahead, waiting: a task that ends hands its slot to that one at once,
     while pebble forks the next in the background (else a slot idles
-    while the pool notices the exit and forks, from a parent of several
-    hundred MB: tests/bench/worker_overhead_bench.py prints it)."""
+    while the pool notices the exit and forks: tests/bench/
+    worker_overhead_bench.py prints it). The workers are forked by a host
+    process (`pool_host`), itself forked from this one as the batch
+    starts, so that this process's pages are not made copy-on-write again
+    at every fork. A host that dies (killed from outside) fails the tasks
+    it held, and a new one takes the rest."""
 
     def __init__(self, workers: int, timeout: float):
         self.workers, self.timeout = workers, timeout
@@ -84,99 +81,105 @@ class LocalExecutor:
         pass
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
-        with _polling(POLL):
-            return self._run(fn, items, on_done)
+        # the values' folder is removed however the batch ends; a value's
+        # file is removed as soon as it is read
+        with tempfile.TemporaryDirectory(prefix="mechval-values-") as values:
+            return self._run(fn, items, on_done, Path(values))
 
-    def _run(self, fn, items, on_done) -> list[Done]:
+    def _run(self, fn, items, on_done, values: Path) -> list[Done]:
         results: list[Done] = []
-        pool = ProcessPool(max_workers=self.workers + 1, max_tasks=1, initializer=die_with_parent,
-                           initargs=(os.getpid(),))
-        waiting = collections.deque(enumerate(items))      # not yet given to the pool
-        running: dict[Future, int] = {}
+        waiting = collections.deque(enumerate(items))      # not yet given to the host
+        held: set[int] = set()                             # given to the host, not yet back
         ended: dict[int, Done] = {}
         count = len(items)
+        host, conn = self._host(values)
 
-        def start() -> None:
-            while waiting and len(running) < self.workers:
+        def give() -> None:
+            while waiting and len(held) <= self.workers:    # as many as run, and one ready in the host
                 index, item = waiting.popleft()
-                running[pool.schedule(fn, args=(item,), timeout=self.timeout)] = index
+                with open(values / f"{index}.task", "wb") as file:
+                    pickle.dump((fn, item), file, protocol=pickle.HIGHEST_PROTOCOL)
+                conn.send(index)
+                held.add(index)
 
         try:
-            start()
+            give()
             while len(results) < count:
                 index = len(results)
-                if index not in ended:          # the next in order still runs: the first to end frees a slot
-                    finished, _ = wait(running, return_when=FIRST_COMPLETED)
-                    for future in finished:
-                        ended[running.pop(future)] = self._done(future)
-                    start()
+                if index not in ended:          # the next in order still runs: wait for the first to end
+                    message = None
+                    if conn.poll(HOST_LOOK):
+                        with contextlib.suppress(EOFError, OSError):    # the pipe's end: the host died
+                            message = conn.recv()
+                        if message is None:
+                            host.join(HOST_STOP)
+                    if message is not None:
+                        k, error = message
+                        ended[k] = Done(error=error) if error else _value(values / f"{k}.value")
+                        held.discard(k)
+                    elif not host.is_alive():
+                        reason = f"the worker pool's host process died (exit code {host.exitcode})"
+                        ended.update({k: Done(error=reason) for k in held})
+                        held.clear()
+                        conn.close()
+                        host, conn = self._host(values)
+                    give()
                     continue
                 done = ended.pop(index)
                 results.append(done)
-                with FORK_GUARD:
+                with pool_host.FORK_GUARD:
                     more = on_done(index, done) or ()
                 waiting.extend(enumerate(more, start=count))
                 count += len(more)
-                start()
+                give()
         except BaseException:
             # Interrupted (Ctrl-C, SIGTERM) or a failure here: stop now.
-            # pebble's close() would wait for the busy workers to finish.
-            _stop_now(pool)
+            _stop_host(host)
             raise
-        pool.close()
-        pool.join()
+        conn.send(None)
+        host.join()
         return results
 
-    def _done(self, future: Future) -> Done:
-        try:
-            return Done(future.result())
-        except FutureTimeout:
-            return Done(error=f"timed out after {self.timeout:g} s (worker killed)")
-        except ProcessExpired as exc:
-            return Done(error=f"worker crashed (exit code {exc.exitcode})")
-        except Exception as exc:  # the task's own error, reported as data
-            return Done(error=_describe(exc))
+    def _host(self, values: Path):
+        """A new pool host and this side of its pipe."""
+        context = multiprocessing.get_context("fork")
+        here, there = context.Pipe()
+        host = context.Process(target=pool_host.serve, name="mechval pool host",
+                               args=(there, self.workers, self.timeout, os.getpid(), str(values)))
+        host.start()
+        there.close()
+        return host, here
 
 
-#: Held while this process handles a finished item (`on_done`: plans
-#: built, runs compared, the progress bar drawn) and around every fork
-#: (os.register_at_fork): pebble forks each worker from its own thread,
-#: and a worker forked while the main thread held a lock (a buffered
-#: stream's, a functools.cached_property's, numba's compiler lock) would
-#: inherit it held by a thread it does not have and wait for it forever.
-FORK_GUARD = threading.RLock()
-os.register_at_fork(before=FORK_GUARD.acquire, after_in_parent=FORK_GUARD.release,
-                    after_in_child=FORK_GUARD.release)
-
-#: How often pebble's pool looks at its workers (s): a worker that ended
-#: its one task is replaced only then, so at pebble's own 0.1 s a slot
-#: idled about half of it per task, a sizeable part of a short engine
-#: run (tests/bench/worker_overhead_bench.py measures it).
-POLL = 0.01
+#: How often the main process looks whether the pool host still lives
+#: while no result comes (s).
+HOST_LOOK = 0.5
+#: How long a stopped host may take to kill its workers and wait for them
+#: before it is killed itself (s): they are SIGKILLed, so milliseconds.
+HOST_STOP = 10.0
 
 
-@contextlib.contextmanager
-def _polling(interval: float):
-    """pebble's period for its pool-managing loop, for one batch."""
-    before, PEBBLE.sleep_unit = PEBBLE.sleep_unit, interval
+def _value(path: Path) -> Done:
+    """A task's value as its worker wrote it (`pool_host.call`), the file
+    removed."""
     try:
-        yield
+        with open(path, "rb") as file:
+            return Done(pickle.load(file))
+    except Exception as exc:    # e.g. a class this process cannot import
+        return Done(error=describe(exc))
     finally:
-        PEBBLE.sleep_unit = before
+        path.unlink(missing_ok=True)
 
 
-def _stop_now(pool: ProcessPool) -> None:
-    """Stop the pool and SIGKILL its workers: an engine busy in C code does
-    not act on SIGTERM, and pebble waits 3 s per worker before killing it.
-    Engine state is disposable, so nothing is lost."""
-    pool.stop()
-    for process in multiprocessing.active_children():
-        if process.name == WORKERS_NAME and process.pid is not None:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(process.pid, signal.SIGKILL)
-    pool.join()
-
-
+def _stop_host(host) -> None:
+    """SIGTERM the host, which SIGKILLs its workers and waits until they
+    are gone; SIGKILL it if it does not end (its workers then die with it)."""
+    if host.is_alive():
+        host.terminate()
+        host.join(HOST_STOP)
+        if host.is_alive():
+            host.kill()
+    host.join()
 
 
 class SchedulerUnreachable(RuntimeError):
@@ -310,7 +313,7 @@ def _done(future) -> Done:
         return Done(error=f"its Dask worker died while running it, on {exc.allowed_failures + 1} workers "
                           f"(the last {exc.last_worker.address})")
     if exc is not None:
-        return Done(error=_describe(exc))
+        return Done(error=describe(exc))
     value, worker = future.result()
     return Done(value, worker=worker)
 

@@ -504,3 +504,48 @@ def test_the_local_pool_runs_at_most_its_workers_at_once_and_reports_in_order():
     spans = [d.value[1:] for d in done]
     for start, _ in spans:      # at each start, how many tasks run (itself included)
         assert sum(s <= start < e for s, e in spans) <= 2
+
+
+def test_a_killed_pool_host_fails_only_the_tasks_it_held():
+    """The workers are forked by a host process (`pool_host`); killed from
+    outside, it takes its workers with it. The tasks it held fail with the
+    reason, a new host runs the rest, nothing hangs, and no worker or host
+    is left; the folder the tasks' values went through is gone."""
+    import multiprocessing
+    from mechval.harness.executors import LocalExecutor
+
+    hosts = []
+
+    def kill_the_host_once(index, done):
+        if index == 1:
+            host = next(p for p in multiprocessing.active_children() if p.name == "mechval pool host")
+            hosts.append(host.pid)
+            os.kill(host.pid, signal.SIGKILL)
+
+    items = [(k, 0.4) for k in range(8)]
+    start = time.monotonic()
+    done = LocalExecutor(2, timeout=20.0).run(sleeps_and_says_when, items, kill_the_host_once)
+    assert time.monotonic() - start < 15
+    failed = [k for k, d in enumerate(done) if d.error]
+    assert failed and all(done[k].error == "the worker pool's host process died (exit code -9)" for k in failed)
+    assert len(failed) <= 3             # what one host holds: workers running, one ready
+    assert all(d.value[0] == k for k, d in enumerate(done) if not d.error)
+    assert len(failed) < len(items) and not alive(hosts[0])
+    assert not [p for p in multiprocessing.active_children() if p.name == "mechval pool host"]
+
+
+def unpicklable_value(item: int):
+    return threading.Lock() if item == 1 else item
+
+
+def test_values_travel_by_a_folder_that_is_gone_after_the_batch(tmp_path, monkeypatch):
+    """A task's value goes from its worker to this process through a
+    file in a temporary folder of the batch's: the folder is gone after
+    the batch, and a value that cannot be pickled fails its task only."""
+    import tempfile
+    from mechval.harness.executors import LocalExecutor
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    done = LocalExecutor(2, timeout=20.0).run(unpicklable_value, [0, 1, 2])
+    assert [d.value for d in done] == [0, None, 2]
+    assert done[1].error.startswith("TypeError") and "pickle" in done[1].error
+    assert not list(tmp_path.iterdir())

@@ -3,7 +3,7 @@ isolation: `mechval.harness.executors.LocalExecutor`), against workers that
 run task after task: the runs' own CPU time, the workers' CPU time in all
 (forks, start-up, and the runs) and the parent's, in CPU time so that it
 holds on a shared machine; and the slots' idle time per run, with pebble's
-pool polled at `executors.POLL` and at pebble's own 0.1 s.
+pool polled at `pool_host.POLL` and at pebble's own 0.1 s.
 
     .venv/bin/python tests/bench/worker_overhead_bench.py [SCENARIO...] [--workers N]
 
@@ -22,7 +22,7 @@ import sys
 import time
 from unittest import mock
 
-from mechval.harness import executors
+from mechval.harness import pool_host
 from mechval.harness.plan import prepare
 from mechval.harness.preflight import chosen_engines, load_scenario
 from mechval.harness.runner import import_engines, run_tasks, tasks_for
@@ -40,10 +40,10 @@ def measure(tasks, workers: int, persistent: bool, poll: float) -> tuple[float, 
     run's share of the slots' idle time (workers × wall − the runs' walls)
     in ms: on a loaded machine the runs' walls stretch too, so it stays
     meaningful where the wall time is not."""
-    pool = executors.ProcessPool
+    pool = pool_host.ProcessPool       # patched here, before the batch forks the pool's host
     fresh_or_not = (lambda **kw: pool(**{**kw, "max_tasks": 0})) if persistent else pool
     children, parent, wall = _children_cpu(), time.process_time(), time.perf_counter()
-    with mock.patch.object(executors, "ProcessPool", fresh_or_not), mock.patch.object(executors, "POLL", poll):
+    with mock.patch.object(pool_host, "ProcessPool", fresh_or_not), mock.patch.object(pool_host, "POLL", poll):
         outcomes = run_tasks(tasks, workers=workers, timeout=600.0)
     idle = (workers * (time.perf_counter() - wall) - sum(o.wall_time for o in outcomes)) / len(outcomes)
     return (sum(o.cpu_time for o in outcomes), _children_cpu() - children, time.process_time() - parent,
@@ -63,7 +63,7 @@ def main() -> None:
     print(f"{'workers':<34} {'runs CPU [s]':>12} {'workers CPU [s]':>15} {'parent CPU [s]':>14} "
           f"{'idle per run [ms]':>17}")
     for _ in range(2):
-        for persistent, poll in ((False, executors.POLL), (False, 0.1), (True, executors.POLL)):
+        for persistent, poll in ((False, pool_host.POLL), (False, 0.1), (True, pool_host.POLL)):
             runs, workers, parent, idle = measure(tasks, args.workers, persistent, poll)
             name = f"{'persistent' if persistent else 'fresh per run'}, pool polled every {poll:g} s"
             print(f"{name:<34} {runs:>12.2f} {workers:>15.2f} {parent:>14.2f} {idle:>17.0f}")

@@ -39,7 +39,7 @@ from . import release_envs as envs
 from .defaults import DASK_CONNECT_TIMEOUT
 from .executors import Done, dask_address_problem, executor_for
 from .preflight import UsageError, check_out_dir, chosen_scenarios, worker_count
-from .release_run import ReleaseRun, read_result, signals_of
+from .release_run import ReleaseRun, read_result
 from .runner import references_for
 
 #: The most variants an engine's runs of one scene are counted for when

@@ -68,8 +68,11 @@ class LocalExecutor:
     worker_overhead_bench.py prints it). The workers are forked by a host
     process (`pool_host`), itself forked from this one as the batch
     starts, so that this process's pages are not made copy-on-write again
-    at every fork. A host that dies (killed from outside) fails the tasks
-    it held, and a new one takes the rest."""
+    at every fork. Where a host ends before its time (killed from outside,
+    or pebble's pool broken), the tasks it held run again on a new one,
+    each alone, and a task held by HOST_LIVES hosts that ended fails with
+    the reason. A task whose function or item cannot be pickled fails
+    alone."""
 
     def __init__(self, workers: int, timeout: float):
         self.workers, self.timeout = workers, timeout
@@ -89,40 +92,73 @@ class LocalExecutor:
     def _run(self, fn, items, on_done, values: Path) -> list[Done]:
         results: list[Done] = []
         waiting = collections.deque(enumerate(items))      # not yet given to the host
-        held: set[int] = set()                             # given to the host, not yet back
+        held: dict[int, Any] = {}                          # given to the host, not yet back
         ended: dict[int, Done] = {}
+        lost: collections.Counter = collections.Counter()  # per task: hosts that ended holding it
         count = len(items)
-        host, conn = self._host(values)
+        host = conn = None
+
+        def room() -> bool:
+            """Room in the host for the next task: as many as run, and one
+            ready; but a task that a host which ended held runs alone (it
+            may be what ended it: then it alone fails)."""
+            suspect = any(lost[k] for k in held) or lost[waiting[0][0]]
+            return not held if suspect else len(held) <= self.workers
 
         def give() -> None:
-            while waiting and len(held) <= self.workers:    # as many as run, and one ready in the host
+            while waiting and room():
                 index, item = waiting.popleft()
-                with open(values / f"{index}.task", "wb") as file:
-                    pickle.dump((fn, item), file, protocol=pickle.HIGHEST_PROTOCOL)
-                conn.send(index)
-                held.add(index)
+                task = values / f"{index}.task"
+                try:
+                    with open(task, "wb") as file:
+                        pickle.dump((fn, item), file, protocol=pickle.HIGHEST_PROTOCOL)
+                except Exception as exc:        # fn or item cannot be pickled: that task fails, alone
+                    task.unlink(missing_ok=True)
+                    ended[index] = Done(error=describe(exc))
+                    continue
+                try:
+                    conn.send(index)
+                except OSError:                 # the host ended: the task waits for the next host
+                    waiting.appendleft((index, item))
+                    return
+                held[index] = item
+
+        def host_ended() -> None:
+            """The tasks the host held run again on a new one, each alone,
+            but a task held by HOST_LIVES hosts that ended fails with the
+            reason."""
+            nonlocal host, conn
+            reason = _host_end(host.exitcode)
+            again = []
+            for k, item in sorted(held.items()):
+                lost[k] += 1
+                if lost[k] < HOST_LIVES:
+                    again.append((k, item))
+                else:
+                    ended[k] = Done(error=reason)
+            waiting.extendleft(reversed(again))
+            held.clear()
+            conn.close()
+            host, conn = self._host(values)
 
         try:
+            host, conn = self._host(values)
             give()
             while len(results) < count:
                 index = len(results)
                 if index not in ended:          # the next in order still runs: wait for the first to end
                     message = None
                     if conn.poll(HOST_LOOK):
-                        with contextlib.suppress(EOFError, OSError):    # the pipe's end: the host died
+                        try:
                             message = conn.recv()
-                        if message is None:
+                        except (EOFError, OSError):     # the pipe's end: the host ended
                             host.join(HOST_STOP)
                     if message is not None:
                         k, error = message
+                        held.pop(k, None)
                         ended[k] = Done(error=error) if error else _value(values / f"{k}.value")
-                        held.discard(k)
                     elif not host.is_alive():
-                        reason = f"the worker pool's host process died (exit code {host.exitcode})"
-                        ended.update({k: Done(error=reason) for k in held})
-                        held.clear()
-                        conn.close()
-                        host, conn = self._host(values)
+                        host_ended()
                     give()
                     continue
                 done = ended.pop(index)
@@ -132,12 +168,13 @@ class LocalExecutor:
                 waiting.extend(enumerate(more, start=count))
                 count += len(more)
                 give()
-        except BaseException:
-            # Interrupted (Ctrl-C, SIGTERM) or a failure here: stop now.
-            _stop_host(host)
-            raise
-        conn.send(None)
-        host.join()
+            with contextlib.suppress(OSError):
+                conn.send(None)
+            host.join(HOST_STOP)
+        finally:
+            # interrupted (Ctrl-C, SIGTERM) or a failure here: stop now;
+            # else the host has ended already
+            _stop_host(host, conn)
         return results
 
     def _host(self, values: Path):
@@ -157,6 +194,16 @@ HOST_LOOK = 0.5
 #: How long a stopped host may take to kill its workers and wait for them
 #: before it is killed itself (s): they are SIGKILLed, so milliseconds.
 HOST_STOP = 10.0
+#: A task held by this many pool hosts that ended (killed from outside,
+#: or pebble's pool broken) fails: once is chance, twice may be the task.
+HOST_LIVES = 2
+
+
+def _host_end(exitcode: int | None) -> str:
+    """Why a task fails whose hosts ended while they held it."""
+    why = ("pebble's worker pool broke (a worker ended before the pool had recorded its task)"
+           if exitcode == pool_host.POOL_BROKE else f"the worker pool's host process died (exit code {exitcode})")
+    return f"{why}, on each of the {HOST_LIVES} hosts given this task"
 
 
 def _value(path: Path) -> Done:
@@ -171,15 +218,25 @@ def _value(path: Path) -> Done:
         path.unlink(missing_ok=True)
 
 
-def _stop_host(host) -> None:
+def _stop_host(host, conn) -> None:
     """SIGTERM the host, which SIGKILLs its workers and waits until they
-    are gone; SIGKILL it if it does not end (its workers then die with it)."""
+    are gone, reading what it may still be sending meanwhile (else it
+    could block on a full pipe); SIGKILL it if it does not end in
+    HOST_STOP (its workers then die with it)."""
+    if host is None:
+        return
     if host.is_alive():
         host.terminate()
-        host.join(HOST_STOP)
-        if host.is_alive():
-            host.kill()
+    deadline = time.monotonic() + HOST_STOP
+    while host.is_alive() and time.monotonic() < deadline:
+        with contextlib.suppress(EOFError, OSError):
+            while conn.poll(0):
+                conn.recv_bytes()
+        host.join(0.02)
+    if host.is_alive():
+        host.kill()
     host.join()
+    conn.close()
 
 
 class SchedulerUnreachable(RuntimeError):

@@ -41,8 +41,10 @@ from pebble.pool.process import WORKERS_NAME
 
 from .interrupts import die_with_parent
 
-#: How often the host's main thread looks for a stop (s).
+#: How often the host's main thread looks for a stop, or a broken pool (s).
 LOOK = 0.05
+#: The host's exit status where pebble's pool broke.
+POOL_BROKE = 70
 
 #: Held around every fork (os.register_at_fork), while the main process
 #: handles a finished task (`executors.LocalExecutor`: plans built, runs
@@ -82,7 +84,7 @@ def serve(conn: Connection, workers: int, timeout: float, parent: int, folder: s
     def send(index: int, future: Future) -> None:
         slots.release()             # its worker has sent its result and ends
         _, error = outcome(future, timeout)
-        with sending:
+        with sending, contextlib.suppress(OSError):     # OSError: the main process is gone
             conn.send((index, error))
 
     def take() -> None:
@@ -90,18 +92,30 @@ def serve(conn: Connection, workers: int, timeout: float, parent: int, folder: s
             while (index := conn.recv()) is not None:
                 slots.acquire()
                 with FORK_GUARD:
-                    pool.schedule(call, args=(os.path.join(folder, str(index)),), timeout=timeout).add_done_callback(
-                        functools.partial(send, index))
+                    future = pool.schedule(call, args=(os.path.join(folder, str(index)),), timeout=timeout)
+                future.add_done_callback(functools.partial(send, index))
         except (EOFError, OSError):         # the main process is gone
             stopped.append(0)
+        except RuntimeError:                # pebble's pool stopped, or broke: the main thread looks which
+            pass
         stop.set()
 
     with polling(POLL):
         threading.Thread(target=take, name="mechval pool host: tasks", daemon=True).start()
-        while not stop.wait(LOOK):
+        while not stop.wait(LOOK) and pool.active:
             pass
         if stopped:
             stop_now(pool)
+        elif not pool.active:
+            # pebble's pool broke (its manager ends where a worker dies
+            # before the pool has recorded its task: "All workers
+            # expired"), and its futures will never resolve: end, and let
+            # the main process give the tasks to a new host
+            for process in multiprocessing.active_children():
+                if process.name == WORKERS_NAME and process.pid is not None:
+                    with contextlib.suppress(ProcessLookupError):
+                        os.kill(process.pid, signal.SIGKILL)
+            os._exit(POOL_BROKE)
         else:
             pool.close()
             pool.join()

@@ -25,13 +25,12 @@ import contextlib
 import multiprocessing
 import os
 import pickle
-import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Callable, Protocol, Sequence
 
 from . import pool_host
+from .task_files import TaskFiles
 from .defaults import DASK_CONNECT_TIMEOUT
 from .pool_host import describe
 
@@ -84,15 +83,13 @@ class LocalExecutor:
         pass
 
     def run(self, fn, items, on_done=lambda index, done: None) -> list[Done]:
-        # the values' folder is removed however the batch ends; a value's
-        # file is removed as soon as it is read
-        with tempfile.TemporaryDirectory(prefix="mechval-values-") as values:
-            return self._run(fn, items, on_done, Path(values))
+        with TaskFiles() as files:
+            return self._run(fn, items, on_done, files)
 
-    def _run(self, fn, items, on_done, values: Path) -> list[Done]:
+    def _run(self, fn, items, on_done, files: TaskFiles) -> list[Done]:
         results: list[Done] = []
         waiting = collections.deque(enumerate(items))      # not yet given to the host
-        held: dict[int, Any] = {}                          # given to the host, not yet back
+        held: dict[int, tuple[Any, str]] = {}             # given to the host, not yet back: item, value's path
         ended: dict[int, Done] = {}
         lost: collections.Counter = collections.Counter()  # per task: hosts that ended holding it
         count = len(items)
@@ -108,20 +105,20 @@ class LocalExecutor:
         def give() -> None:
             while waiting and room():
                 index, item = waiting.popleft()
-                task = values / f"{index}.task"
+                task, value = files.paths(index)
                 try:
                     with open(task, "wb") as file:
                         pickle.dump((fn, item), file, protocol=pickle.HIGHEST_PROTOCOL)
                 except Exception as exc:        # fn or item cannot be pickled: that task fails, alone
-                    task.unlink(missing_ok=True)
+                    files.release(index)
                     ended[index] = Done(error=describe(exc))
                     continue
                 try:
-                    conn.send(index)
+                    conn.send((index, task, value))
                 except OSError:                 # the host ended: the task waits for the next host
                     waiting.appendleft((index, item))
                     return
-                held[index] = item
+                held[index] = item, value
 
         def host_ended() -> None:
             """The tasks the host held run again on a new one, each alone,
@@ -130,19 +127,20 @@ class LocalExecutor:
             nonlocal host, conn
             reason = _host_end(host.exitcode)
             again = []
-            for k, item in sorted(held.items()):
+            for k, (item, _) in sorted(held.items()):
                 lost[k] += 1
                 if lost[k] < HOST_LIVES:
                     again.append((k, item))
                 else:
                     ended[k] = Done(error=reason)
+                    files.release(k)
             waiting.extendleft(reversed(again))
             held.clear()
             conn.close()
-            host, conn = self._host(values)
+            host, conn = self._host()
 
         try:
-            host, conn = self._host(values)
+            host, conn = self._host()
             give()
             while len(results) < count:
                 index = len(results)
@@ -155,8 +153,9 @@ class LocalExecutor:
                             host.join(HOST_STOP)
                     if message is not None:
                         k, error = message
-                        held.pop(k, None)
-                        ended[k] = Done(error=error) if error else _value(values / f"{k}.value")
+                        _, value = held.pop(k)
+                        ended[k] = Done(error=error) if error else _value(value)
+                        files.release(k)
                     elif not host.is_alive():
                         host_ended()
                     give()
@@ -177,12 +176,12 @@ class LocalExecutor:
             _stop_host(host, conn)
         return results
 
-    def _host(self, values: Path):
+    def _host(self):
         """A new pool host and this side of its pipe."""
         context = multiprocessing.get_context("fork")
         here, there = context.Pipe()
         host = context.Process(target=pool_host.serve, name="mechval pool host",
-                               args=(there, self.workers, self.timeout, os.getpid(), str(values)))
+                               args=(there, self.workers, self.timeout, os.getpid()))
         host.start()
         there.close()
         return host, here
@@ -206,16 +205,13 @@ def _host_end(exitcode: int | None) -> str:
     return f"{why}, on each of the {HOST_LIVES} hosts given this task"
 
 
-def _value(path: Path) -> Done:
-    """A task's value as its worker wrote it (`pool_host.call`), the file
-    removed."""
+def _value(path: str) -> Done:
+    """A task's value as its worker wrote it (`pool_host.call`)."""
     try:
         with open(path, "rb") as file:
             return Done(pickle.load(file))
     except Exception as exc:    # e.g. a class this process cannot import
         return Done(error=describe(exc))
-    finally:
-        path.unlink(missing_ok=True)
 
 
 def _stop_host(host, conn) -> None:

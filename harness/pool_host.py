@@ -9,11 +9,12 @@ progress bar), so each page it wrote after a fork was copied: in one
 workers need. The host does nothing between forks but hand tasks on and
 results back, so its pages stay shared and a fork costs it little.
 
-Tasks and values go by files in a folder of the batch's: the main
-process writes (fn, item) pickled to INDEX.task there and sends INDEX on
-a pipe (None once it has every result); the worker reads that file and
-writes the value, pickled, to INDEX.value; the host sends back (INDEX,
-error text) as the task ends, and the main process reads the value. The host runs at most `workers` tasks at once, with
+Tasks and values go by files (`task_files`): the main process writes
+(fn, item) pickled to a task's file and sends (index, task's file,
+value's file) on a pipe (None once it has every result); the worker
+reads the one and writes the value, pickled, to the other; the host
+sends back (index, error text) as the task ends, and the main process
+reads the value. The host runs at most `workers` tasks at once, with
 one more process forked ahead, waiting (`executors.LocalExecutor`); the
 main process keeps at most `workers + 1` tasks in the host, so neither
 side blocks on a full pipe while the other waits for it. SIGTERM stops
@@ -65,7 +66,7 @@ os.register_at_fork(before=FORK_GUARD.acquire, after_in_parent=FORK_GUARD.releas
 POLL = 0.01
 
 
-def serve(conn: Connection, workers: int, timeout: float, parent: int, folder: str) -> None:
+def serve(conn: Connection, workers: int, timeout: float, parent: int) -> None:
     """The host's life: pebble's pool for the tasks `conn` brings, until
     None arrives (the batch is done) or SIGTERM (stopped). As each task
     ends, (its index, why it has no value or "") goes back."""
@@ -89,10 +90,11 @@ def serve(conn: Connection, workers: int, timeout: float, parent: int, folder: s
 
     def take() -> None:
         try:
-            while (index := conn.recv()) is not None:
+            while (message := conn.recv()) is not None:
+                index, task, value = message
                 slots.acquire()
                 with FORK_GUARD:
-                    future = pool.schedule(call, args=(os.path.join(folder, str(index)),), timeout=timeout)
+                    future = pool.schedule(call, args=(task, value), timeout=timeout)
                 future.add_done_callback(functools.partial(send, index))
         except (EOFError, OSError):         # the main process is gone
             stopped.append(0)
@@ -111,10 +113,7 @@ def serve(conn: Connection, workers: int, timeout: float, parent: int, folder: s
             # before the pool has recorded its task: "All workers
             # expired"), and its futures will never resolve: end, and let
             # the main process give the tasks to a new host
-            for process in multiprocessing.active_children():
-                if process.name == WORKERS_NAME and process.pid is not None:
-                    with contextlib.suppress(ProcessLookupError):
-                        os.kill(process.pid, signal.SIGKILL)
+            kill_workers()
             os._exit(POOL_BROKE)
         else:
             pool.close()
@@ -130,17 +129,16 @@ def _worker_start(host: int, fd: int) -> None:
     os.close(fd)
 
 
-def call(path: str) -> None:
+def call(task: str, value: str) -> None:
     """A worker's task: fn(item) for the (fn, item) pickled in the file
-    `path`.task, its value pickled into `path`.value. Neither passes
-    through the host: it names the task to run and the task that ended
-    (its writes after each fork, every page of which the kernel copies,
-    were mostly tasks' and values' buffers of up to MB)."""
-    with open(path + ".task", "rb") as file:
+    `task`, its value pickled into the file `value` (`task_files`).
+    Neither passes through the host, which only names the task to run and
+    the task that ended (its writes after each fork, every page of which
+    the kernel copies, were mostly tasks' and values' buffers of MB)."""
+    with open(task, "rb") as file:
         fn, item = pickle.load(file)
-    os.unlink(path + ".task")
     result = fn(item)
-    with open(path + ".value", "wb") as file:
+    with open(value, "wb") as file:
         pickle.dump(result, file, protocol=pickle.HIGHEST_PROTOCOL)
 
 
@@ -175,8 +173,13 @@ def stop_now(pool: ProcessPool) -> None:
     not act on SIGTERM, and pebble waits 3 s per worker before killing it.
     Engine state is disposable, so nothing is lost."""
     pool.stop()
+    kill_workers()
+    pool.join()
+
+
+def kill_workers() -> None:
+    """SIGKILL this process's pebble workers."""
     for process in multiprocessing.active_children():
         if process.name == WORKERS_NAME and process.pid is not None:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(process.pid, signal.SIGKILL)
-    pool.join()

@@ -585,14 +585,22 @@ def unpicklable_value(item: int):
     return threading.Lock() if item == 1 else item
 
 
-def test_values_travel_by_a_folder_that_is_gone_after_the_batch(tmp_path, monkeypatch):
-    """A task's value goes from its worker to this process through a
-    file in a temporary folder of the batch's: the folder is gone after
-    the batch, and a value that cannot be pickled fails its task only."""
+@pytest.mark.parametrize("memory", [True, False], ids=["memory files", "a temporary folder"])
+def test_tasks_and_values_leave_nothing_behind(tmp_path, monkeypatch, memory):
+    """Tasks and values pass through files (`task_files`): on Linux memory
+    files of this process, which write nothing to any file system and
+    whose descriptors are closed after the batch; elsewhere a temporary
+    folder, gone after the batch. Either way a value that cannot be
+    pickled fails its task only."""
     import tempfile
+    from mechval.harness import task_files
     from mechval.harness.executors import LocalExecutor
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    done = LocalExecutor(2, timeout=20.0).run(unpicklable_value, [0, 1, 2])
-    assert [d.value for d in done] == [0, None, 2]
+    if not memory:
+        monkeypatch.delattr(task_files.os, "memfd_create", raising=False)
+    before = sorted(os.listdir("/proc/self/fd"))
+    done = LocalExecutor(2, timeout=20.0).run(unpicklable_value, [0, 1, 2] * 3)
+    assert [d.value for d in done] == [0, None, 2] * 3
     assert done[1].error.startswith("TypeError") and "pickle" in done[1].error
     assert not list(tmp_path.iterdir())
+    assert sorted(os.listdir("/proc/self/fd")) == before

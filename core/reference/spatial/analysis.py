@@ -69,7 +69,7 @@ def analyse_spatial(scenario: Scenario, samples: int | None = None) -> SpatialAn
         raise ScenarioError(scenario.source, "time", "the Jacobian of the rows the reference keeps is exactly "
                                                      "singular at an instant of the run") from None
     s = solution.structure
-    cond = _kept_rows_condition(system, solution.frame, s.independent) if integrated else solution.condition
+    cond = _rows_condition(system, solution.frame, s.independent) if integrated else solution.condition
     if cond is None or not len(s.independent):
         cond = np.full(len(t), np.nan)
     median = float(np.median(cond))
@@ -84,7 +84,7 @@ def analyse_spatial(scenario: Scenario, samples: int | None = None) -> SpatialAn
         near_singular=tuple((float(t[k]), float(cond[k])) for k in peaks))
 
 
-def _kept_rows_condition(system: SpatialSystem, frame, rows: tuple[int, ...]) -> np.ndarray | None:
+def _rows_condition(system: SpatialSystem, frame, rows: tuple[int, ...]) -> np.ndarray | None:
     """σmax/σr of the scaled Jacobian of all rows, r = the independent
     rows' count, at the states of an integrated run (None without
     constraints): without redundant rows the kept rows' σmax/σmin; with

@@ -81,6 +81,12 @@ def momentum(system: SpatialSystem, pose: Pose, w: np.ndarray) -> tuple[np.ndarr
     return linear, angular
 
 
+def _condition(J: np.ndarray) -> np.ndarray:
+    """σmax/σmin of each (rows, n) matrix of J."""
+    s = np.linalg.svd(J, compute_uv=False)
+    return s[:, 0] / s[:, -1]
+
+
 class SpatialDynamics:
     """Integrate a spatial system from its bodies' stated poses and the
     given initial velocities: per body name, (velocity of the frame
@@ -95,8 +101,8 @@ class SpatialDynamics:
         self.found = structure(c, self.solver.scaling, pose)
         self.rows = list(self.found.independent)
         if self.found.redundant:
-            jac = c.evaluate(pose, np.array([t0]))["jac"]
-            self.assembly_condition = float(self._condition(jac, self.rows)[0])
+            scaled = self._scaled(c.evaluate(pose, np.array([t0]))["jac"])
+            self.assembly_condition = float(_condition(scaled[:, self.rows])[0])
         nb = len(system.bodies)
         w = np.zeros((1, nb, 6))
         for k, b in enumerate(system.bodies):
@@ -136,19 +142,16 @@ class SpatialDynamics:
         pick."""
         if not self.found.redundant:
             return self.rows
-        condition = self._condition(jac, self.rows)
+        scaled = self._scaled(jac)
+        condition = _condition(scaled[:, self.rows])
         if (condition > REPICK_GROWTH * self.assembly_condition).any():
-            scaled = jac * self.solver.scaling.row[:, None] * self.solver.scaling.column
             worst = int(np.argmax(condition))
             self.rows = list(kept_rows(self.c, scaled[worst], self.c.n - self.found.mobility))
             self.repicks += 1
         return self.rows
 
-    def _condition(self, jac: np.ndarray, rows: list[int]) -> np.ndarray:
-        """σmax/σmin of the scaled Jacobian's `rows`, per state."""
-        scaling = self.solver.scaling
-        s = np.linalg.svd(jac[:, rows] * scaling.row[rows, None] * scaling.column, compute_uv=False)
-        return s[:, 0] / s[:, -1]
+    def _scaled(self, jac: np.ndarray) -> np.ndarray:
+        return jac * self.solver.scaling.row[:, None] * self.solver.scaling.column
 
     def _unpack(self, y: np.ndarray) -> tuple[Pose, np.ndarray]:
         """y (N, 13·nb) → pose and velocities."""
